@@ -1,0 +1,89 @@
+"""One demonstration or trial as arrays, the mentor protocol, and the loop that records a mentor.
+
+An :class:`Episode` is what the dataset stores per ``demo_N``: the observations the robot's own
+sensors gave (named by the env's ``observation_names``), the mentor's end-effector commands, the
+transition of the skill net the mentor said it was executing at every sample, and the mentor's
+per-segment labels.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class SegmentLabel:
+    """A mentor's (or the robot's) verdict on one segment ``[start, end)`` of an episode."""
+
+    start: int
+    end: int
+    transition: str
+    success: bool
+    labeller: str = "mentor"
+
+
+@dataclass
+class Episode:
+    """Arrays of one recorded episode; ``T`` samples at the control rate."""
+
+    obs: np.ndarray                  # (T, n_obs) float64
+    actions: np.ndarray              # (T, n_cmd) float64, the command applied at each sample
+    transitions: np.ndarray          # (T,) str, transition the mentor was executing
+    observation_names: tuple[str, ...]
+    command_names: tuple[str, ...]
+    dt: float
+    seed: int
+    reset_options: dict[str, Any] = field(default_factory=dict)
+    labels: list[SegmentLabel] = field(default_factory=list)
+    outcome: str = ""                # "success" / "failure" as the mentor saw it
+
+    @property
+    def num_samples(self) -> int:
+        return int(self.obs.shape[0])
+
+    @property
+    def duration(self) -> float:
+        return self.num_samples * self.dt
+
+    def segments(self) -> list[tuple[int, int, str]]:
+        """Maximal runs of one transition tag as ``(start, end, transition)``."""
+        tags = self.transitions
+        if len(tags) == 0:
+            return []
+        cut = np.flatnonzero(tags[1:] != tags[:-1]) + 1
+        starts = np.concatenate([[0], cut])
+        ends = np.concatenate([cut, [len(tags)]])
+        return [(int(s), int(e), str(tags[s])) for s, e in zip(starts, ends)]
+
+    def column(self, name: str) -> np.ndarray:
+        """One observation entry by name."""
+        return self.obs[:, self.observation_names.index(name)]
+
+
+class Mentor(Protocol):
+    """What a mentor (scripted or a person at a joystick) provides to the recorder.
+
+    A scripted mentor stands in for a person: it may look at whatever a person would see, but the
+    robot never calls its code.
+    """
+
+    name: str
+
+    def reset(self, obs: np.ndarray, rng: np.random.Generator) -> None:
+        """Start a new demonstration from ``obs``."""
+
+    def act(self, obs: np.ndarray, info: dict[str, Any], t: float) -> tuple[np.ndarray, str]:
+        """Return the command for this sample and the transition the mentor is executing.
+
+        ``info`` is the env's step info; a person watching the scene sees what the env puts under
+        ``info["scene"]`` (e.g. the true rod angles of a nunchaku), which the robot never reads.
+        """
+
+    def finished(self) -> bool:
+        """True when the mentor ends the demonstration (skill done, or given up)."""
+
+    def label(self, episode: Episode) -> list[SegmentLabel]:
+        """Label every segment of ``episode`` success or failure, from what the mentor observed."""

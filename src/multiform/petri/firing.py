@@ -1,0 +1,252 @@
+"""Marking, clocks and the stochastic firing rule: one trial's run of an APN, tick by tick.
+
+The tick (called once per control step, see the README's "Tick semantics"):
+
+1. the state variables are read, derived variables computed, clocks updated (``time``,
+   ``dwell_<place>`` = seconds since the place last received a token, ``fires_<t>``);
+2. the candidates are the transitions enabled by the marking (every input place holds at least the
+   arc weight) whose condition holds;
+3. if there are candidates, one fires, chosen with probability proportional to λ (a candidate with
+   λ = 0 never fires); firing moves the marking by A[:, t] and resets the output places' clocks;
+4. the law of the fired transition becomes the active law for the commands it writes; transitions
+   without a law leave the active laws as they are.
+
+At most ``max_firings_per_tick`` transitions fire in one tick (default 1: one stochastic decision
+per control step, as in the paper; at 1 kHz the next decision is 1 ms later). Each transition fires
+at most once per tick, so a self-loop whose condition stays true cannot spin.
+"""
+
+from __future__ import annotations
+
+import operator
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from ..errors import InvalidInput
+from .net import APN
+
+
+class LearnedCondition(Protocol):
+    """What a learned condition model offers the net: its input names and a boolean decision."""
+
+    input_names: tuple[str, ...]
+
+    def __call__(self, x: np.ndarray) -> bool: ...
+
+
+@dataclass(frozen=True)
+class Firing:
+    """One firing: tick index, trial time, transition id."""
+
+    tick: int
+    time: float
+    transition: str
+
+
+class NetRunner:
+    """Runs the discrete part of a skill for one trial at a time.
+
+    ``state_names`` are the names of the entries of the state vector passed to :meth:`tick` (an
+    env's ``observation_names``); every variable the skill declares must be among them.
+    ``learned`` maps model names used by ``{model: name}`` conditions to their models.
+    """
+
+    def __init__(self, apn: APN, state_names: Sequence[str],
+                 learned: Mapping[str, LearnedCondition] | None = None,
+                 rng: np.random.Generator | int | None = None, max_firings_per_tick: int = 1):
+        self.apn = apn
+        self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+        self.max_firings_per_tick = max_firings_per_tick
+        learned = dict(learned or {})
+        missing_vars = [v for v in apn.variables if v not in state_names]
+        if missing_vars:
+            raise InvalidInput(f"the state has no variable(s) {', '.join(missing_vars)} "
+                               f"(it has: {', '.join(state_names)})", element="variables")
+        missing_models = sorted({t.condition.model for t in apn.transitions
+                                 if t.condition.is_learned and t.condition.model not in learned})
+        if missing_models:
+            raise InvalidInput(f"learned condition model(s) {', '.join(missing_models)} not provided",
+                               element="transitions")
+
+        # Slot layout of the flat value list the compiled guards read.
+        names: list[str] = list(apn.variables) + list(apn.derived) + ["time"]
+        names += [f"dwell_{p}" for p in apn.place_ids] + [f"fires_{t}" for t in apn.transition_ids]
+        self.slots = {n: i for i, n in enumerate(names)}
+        self._n_state = len(apn.variables)
+        self._state_getter = operator.itemgetter(*[list(state_names).index(v) for v in apn.variables]) \
+            if apn.variables else None
+        self._derived = [(self.slots[n], g.compile(self.slots)) for n, g in apn.derived.items()]
+        self._time_slot = self.slots["time"]
+        self._dwell_slot = [self.slots[f"dwell_{p}"] for p in apn.place_ids]
+        self._fires_slot = [self.slots[f"fires_{t}"] for t in apn.transition_ids]
+
+        # Per transition: its 'dwell' slot (an alias for a single input place; an extra slot holding
+        # the minimum over several input places; 'time' for a source transition) and its guard.
+        self._multi_dwell: list[tuple[int, list[int]]] = []
+        self._guards: list[Callable[[list[float]], bool]] = []
+        n_slots = len(names)
+        for t in apn.transitions:
+            ins = [apn.place_index(p) for p in t.inputs]
+            if len(ins) == 1:
+                dwell = self._dwell_slot[ins[0]]
+            elif not ins:
+                dwell = self._time_slot
+            else:
+                dwell = n_slots
+                n_slots += 1
+                self._multi_dwell.append((dwell, [self._dwell_slot[i] for i in ins]))
+            if t.condition.is_learned:
+                self._guards.append(self._learned_guard(learned[t.condition.model]))
+            else:
+                self._guards.append(t.condition.guard.compile({**self.slots, "dwell": dwell}))
+        self._n_slots = n_slots
+        self._pre_cols = [[(apn.place_index(p), w) for p, w in t.inputs.items()] for t in apn.transitions]
+        self._post_cols = [[(apn.place_index(p), w) for p, w in t.outputs.items()] for t in apn.transitions]
+        self._lam = [float(t.lam) for t in apn.transitions]
+        self._law = [t.law for t in apn.transitions]
+        self._law_outputs = {name: law.outputs for name, law in apn.laws.items()}
+        self._final = {apn.place_index(p): kind for p, kind in apn.final_places.items()}
+        self.reset()
+
+    def _learned_guard(self, model: LearnedCondition) -> Callable[[list[float]], bool]:
+        unknown = [n for n in model.input_names if n not in self.slots]
+        if unknown:
+            raise InvalidInput(f"learned condition reads unknown variable(s) {', '.join(unknown)}",
+                               element="transitions")
+        idx = [self.slots[n] for n in model.input_names]
+        getter = operator.itemgetter(*idx)
+        buf = np.empty(len(idx))
+        if len(idx) == 1:
+            def guard(v: list[float]) -> bool:
+                buf[0] = v[idx[0]]
+                return bool(model(buf))
+        else:
+            def guard(v: list[float]) -> bool:
+                buf[:] = getter(v)
+                return bool(model(buf))
+        return guard
+
+    # -- trial lifecycle -------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Back to the initial marking, clocks and counters at zero."""
+        self.marking = [int(x) for x in self.apn.m0]
+        self.values = [0.0] * self._n_slots
+        self._entered = [0.0] * len(self.marking)
+        self.tick_index = 0
+        self.time = 0.0
+        self.firings: list[Firing] = []
+        self.active_laws: dict[str, str] = {}
+        self.outcome: str | None = None
+        n = len(self._guards)
+        self.enabled_ticks = [0] * n
+        self.held_ticks = [0] * n
+        self._refresh_enabled()
+
+    def _refresh_enabled(self) -> None:
+        m = self.marking
+        self._enabled = [j for j, col in enumerate(self._pre_cols) if all(m[i] >= w for i, w in col)]
+
+    def observe(self, state: Sequence[float], time: float) -> list[float]:
+        """Load one state vector and the trial time into the value slots (steps 1 of the tick)."""
+        v = self.values
+        if self._state_getter is not None:
+            got = self._state_getter(state)
+            if self._n_state == 1:
+                v[0] = float(got)
+            else:
+                v[: self._n_state] = got
+        for slot, f in self._derived:
+            v[slot] = f(v)
+        v[self._time_slot] = time
+        entered = self._entered
+        for i, n in enumerate(self.marking):
+            v[self._dwell_slot[i]] = time - entered[i] if n else 0.0
+        for slot, ins in self._multi_dwell:
+            v[slot] = min(v[s] for s in ins)
+        self.time = time
+        return v
+
+    def candidates(self) -> list[int]:
+        """Indices of the transitions enabled by the marking whose condition holds now."""
+        v = self.values
+        out = []
+        for j in self._enabled:
+            self.enabled_ticks[j] += 1
+            if self._guards[j](v):
+                self.held_ticks[j] += 1
+                out.append(j)
+        return out
+
+    def choose(self, candidates: Sequence[int]) -> int | None:
+        """Pick one candidate with probability proportional to λ; None if all have λ = 0."""
+        if len(candidates) == 1:
+            j = candidates[0]
+            return j if self._lam[j] > 0 else None
+        weights = [self._lam[j] for j in candidates]
+        total = sum(weights)
+        if total <= 0:
+            return None
+        r = self.rng.random() * total
+        acc = 0.0
+        for j, w in zip(candidates, weights):
+            acc += w
+            if r < acc:
+                return j
+        return candidates[-1]
+
+    def fire(self, j: int) -> None:
+        """Fire transition ``j`` (it must be enabled): m' = m − pre[:, j] + post[:, j]."""
+        m = self.marking
+        for i, w in self._pre_cols[j]:
+            if m[i] < w:
+                raise RuntimeError(f"transition {self.apn.transition_ids[j]} fired while not enabled")
+            m[i] -= w
+        for i, w in self._post_cols[j]:
+            m[i] += w
+            self._entered[i] = self.time
+            self.values[self._dwell_slot[i]] = 0.0
+        self.values[self._fires_slot[j]] += 1
+        law = self._law[j]
+        if law is not None:
+            for c in self._law_outputs.get(law, ("*",)):
+                self.active_laws[c] = law
+        self.firings.append(Firing(self.tick_index, self.time, self.apn.transition_ids[j]))
+        self._refresh_enabled()
+        for i, kind in self._final.items():
+            if m[i] > 0:
+                self.outcome = kind
+                break
+
+    def tick(self, state: Sequence[float], time: float) -> list[str]:
+        """One control tick: observe, then fire up to ``max_firings_per_tick`` transitions.
+
+        Returns the ids fired this tick (usually none). After a final place gets a token,
+        :attr:`outcome` is ``"success"`` or ``"failure"`` and the trial is over.
+        """
+        self.observe(state, time)
+        fired: list[str] = []
+        done: set[int] = set()
+        for _ in range(self.max_firings_per_tick):
+            if self.outcome is not None:
+                break
+            cands = [j for j in self.candidates() if j not in done]
+            if not cands:
+                break
+            j = self.choose(cands)
+            if j is None:
+                break
+            self.fire(j)
+            done.add(j)
+            fired.append(self.apn.transition_ids[j])
+        self.tick_index += 1
+        return fired
+
+    # -- views -----------------------------------------------------------------------------------
+    def marking_dict(self) -> dict[str, int]:
+        return {p: n for p, n in zip(self.apn.place_ids, self.marking) if n}
+
+    def fire_counts(self) -> dict[str, int]:
+        return {t: int(self.values[s]) for t, s in zip(self.apn.transition_ids, self._fires_slot)}

@@ -1,0 +1,256 @@
+"""The adaptive Petri net M = (P, T, A, m0, Λ, C) and the skill data that travels with it.
+
+An :class:`APN` is immutable: a revision produces a new one (see :mod:`multiform.petri.revision`),
+so every version of a net can be kept, compared and drawn. Places are judged states, transitions
+are maneuvers run by one control law each; ``lam`` is a transition's firing weight λ and
+``condition`` its firing condition over continuous state.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+
+from .guard import Guard, parse_guard
+
+FINAL_KINDS = ("success", "failure")
+CLOCK_VARIABLES = ("time", "dwell")
+
+
+@dataclass(frozen=True)
+class Condition:
+    """A firing condition: a guard expression, or a reference to a learned model by name."""
+
+    guard: Guard | None = None
+    model: str | None = None
+
+    @classmethod
+    def always(cls) -> Condition:
+        return cls(guard=parse_guard("true"))
+
+    @classmethod
+    def expression(cls, text: str, allowed: set[str] | frozenset[str] | None = None) -> Condition:
+        return cls(guard=parse_guard(text, allowed))
+
+    @classmethod
+    def learned(cls, name: str) -> Condition:
+        return cls(model=name)
+
+    @property
+    def is_learned(self) -> bool:
+        return self.model is not None
+
+    @property
+    def variables(self) -> frozenset[str]:
+        return self.guard.variables if self.guard is not None else frozenset()
+
+    def to_data(self) -> str | dict[str, str]:
+        """The skill-file form: the expression text, or ``{"model": name}``."""
+        return {"model": self.model} if self.model is not None else self.guard.text
+
+    def __str__(self) -> str:
+        return f"learned:{self.model}" if self.model is not None else self.guard.text
+
+
+@dataclass(frozen=True)
+class Place:
+    """A judged state of the skill; ``final`` marks the end places of a trial."""
+
+    id: str
+    label: str = ""
+    final: str | None = None
+    judge: tuple[str, ...] = ()
+
+    def to_data(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        if self.label:
+            out["label"] = self.label
+        if self.final:
+            out["final"] = self.final
+        if self.judge:
+            out["judge"] = list(self.judge)
+        return out
+
+
+@dataclass(frozen=True)
+class Transition:
+    """A maneuver: consumes ``inputs`` tokens, produces ``outputs``, runs ``law`` while active."""
+
+    id: str
+    inputs: Mapping[str, int]
+    outputs: Mapping[str, int]
+    law: str | None = None
+    lam: float = 1.0
+    condition: Condition = field(default_factory=Condition.always)
+    label: str = ""
+
+    @property
+    def preset(self) -> frozenset[str]:
+        return frozenset(self.inputs)
+
+    def to_data(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        if self.label:
+            out["label"] = self.label
+        out["in"] = _arcs_data(self.inputs)
+        out["out"] = _arcs_data(self.outputs)
+        if self.law:
+            out["law"] = self.law
+        out["lambda"] = float(self.lam)
+        out["condition"] = self.condition.to_data()
+        return out
+
+
+def _arcs_data(arcs: Mapping[str, int]) -> list[str] | dict[str, int]:
+    if all(w == 1 for w in arcs.values()):
+        return list(arcs)
+    return {p: int(w) for p, w in arcs.items()}
+
+
+@dataclass(frozen=True)
+class Law:
+    """A control law: which variables it reads and which commands it writes."""
+
+    name: str
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+
+    def to_data(self, commands: tuple[str, ...]) -> dict[str, Any]:
+        out: dict[str, Any] = {"inputs": list(self.inputs)}
+        if self.outputs != commands:
+            out["outputs"] = list(self.outputs)
+        return out
+
+
+@dataclass(frozen=True)
+class APN:
+    """An adaptive Petri net with the skill's variables, commands and laws.
+
+    Places and transitions keep their file order; matrices are indexed in that order.
+    """
+
+    name: str
+    places: tuple[Place, ...]
+    transitions: tuple[Transition, ...]
+    initial_marking: Mapping[str, int]
+    variables: Mapping[str, str] = field(default_factory=dict)
+    derived: Mapping[str, Guard] = field(default_factory=dict)
+    commands: tuple[str, ...] = ()
+    laws: Mapping[str, Law] = field(default_factory=dict)
+    description: str = ""
+    env: str = ""
+    control_rate: float = 1000.0
+    max_duration: float = 60.0
+
+    # -- lookup -------------------------------------------------------------------------------
+    @cached_property
+    def place_ids(self) -> tuple[str, ...]:
+        return tuple(p.id for p in self.places)
+
+    @cached_property
+    def transition_ids(self) -> tuple[str, ...]:
+        return tuple(t.id for t in self.transitions)
+
+    @cached_property
+    def _place_index(self) -> dict[str, int]:
+        return {p: i for i, p in enumerate(self.place_ids)}
+
+    @cached_property
+    def _transition_index(self) -> dict[str, int]:
+        return {t: i for i, t in enumerate(self.transition_ids)}
+
+    def place(self, pid: str) -> Place:
+        return self.places[self._place_index[pid]]
+
+    def transition(self, tid: str) -> Transition:
+        return self.transitions[self._transition_index[tid]]
+
+    def place_index(self, pid: str) -> int:
+        return self._place_index[pid]
+
+    def transition_index(self, tid: str) -> int:
+        return self._transition_index[tid]
+
+    @property
+    def final_places(self) -> dict[str, str]:
+        """Final place id -> "success" or "failure"."""
+        return {p.id: p.final for p in self.places if p.final}
+
+    # -- the incidence structure --------------------------------------------------------------
+    @cached_property
+    def pre(self) -> np.ndarray:
+        """Input arc weights, shape (|P|, |T|): tokens a transition consumes from each place."""
+        m = np.zeros((len(self.places), len(self.transitions)), dtype=np.int64)
+        for j, t in enumerate(self.transitions):
+            for p, w in t.inputs.items():
+                m[self._place_index[p], j] = w
+        return m
+
+    @cached_property
+    def post(self) -> np.ndarray:
+        """Output arc weights, shape (|P|, |T|)."""
+        m = np.zeros((len(self.places), len(self.transitions)), dtype=np.int64)
+        for j, t in enumerate(self.transitions):
+            for p, w in t.outputs.items():
+                m[self._place_index[p], j] = w
+        return m
+
+    @cached_property
+    def incidence(self) -> np.ndarray:
+        """The incidence matrix A = post − pre; firing t moves the marking by A[:, t]."""
+        return self.post - self.pre
+
+    @cached_property
+    def m0(self) -> np.ndarray:
+        """The initial marking as a vector over places."""
+        m = np.zeros(len(self.places), dtype=np.int64)
+        for p, n in self.initial_marking.items():
+            m[self._place_index[p]] = n
+        return m
+
+    @cached_property
+    def lambdas(self) -> np.ndarray:
+        return np.array([t.lam for t in self.transitions], dtype=np.float64)
+
+    def siblings(self, tid: str) -> tuple[str, ...]:
+        """Transitions with the same input places as ``tid`` (its choice group), itself excluded."""
+        pre = self.transition(tid).preset
+        return tuple(t.id for t in self.transitions if t.id != tid and t.preset == pre)
+
+    def condition_variables(self) -> frozenset[str]:
+        """Every name a condition or law input may use in this net."""
+        names = set(self.variables) | set(self.derived) | set(CLOCK_VARIABLES)
+        names |= {f"dwell_{p}" for p in self.place_ids}
+        names |= {f"fires_{t}" for t in self.transition_ids}
+        return frozenset(names)
+
+    # -- structural edits (used by revisions; each returns a new net) ---------------------------
+    def with_transition(self, t: Transition) -> APN:
+        """Replace the transition with ``t.id``, or append ``t`` if the id is new."""
+        ts = list(self.transitions)
+        if t.id in self._transition_index:
+            ts[self._transition_index[t.id]] = t
+        else:
+            ts.append(t)
+        return replace(self, transitions=tuple(ts))
+
+    def with_place(self, p: Place) -> APN:
+        """Replace the place with ``p.id``, or append ``p`` if the id is new."""
+        ps = list(self.places)
+        if p.id in self._place_index:
+            ps[self._place_index[p.id]] = p
+        else:
+            ps.append(p)
+        return replace(self, places=tuple(ps))
+
+    def fresh_id(self, prefix: str) -> str:
+        """The first ``prefix<N>`` not used by a place or a transition."""
+        used = set(self.place_ids) | set(self.transition_ids)
+        n = 0
+        while f"{prefix}{n}" in used:
+            n += 1
+        return f"{prefix}{n}"

@@ -1,0 +1,223 @@
+"""Revisions: the four ways the robot changes its net, each recorded with its reason and evidence.
+
+Every operator returns a new :class:`~multiform.petri.net.APN` and a :class:`Revision` that holds
+enough to replay it (``params``) and to show it (``before``/``after``). A :class:`History` keeps the
+revisions as JSON lines beside the original definition, which it never writes; any version is
+rebuilt as original + the first *n* revisions.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from ..errors import InvalidInput, Problem
+from ..io import append_jsonl, read_jsonl
+from .net import APN
+from .skillfile import parse_condition, parse_places, parse_transitions, load_skill
+
+OPERATORS = ("set_lambda", "set_condition", "add_transition", "add_place")
+
+
+@dataclass(frozen=True)
+class Revision:
+    """One recorded change of the net."""
+
+    version: int                   # the version this revision creates (the original is version 0)
+    operator: str
+    target: str
+    reason: str
+    params: dict[str, Any]
+    before: dict[str, Any] | None = None
+    after: dict[str, Any] | None = None
+    evidence: dict[str, Any] = field(default_factory=dict)
+    time: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any], where: str = "") -> Revision:
+        missing = [k for k in ("version", "operator", "target", "reason", "params") if k not in d]
+        if missing:
+            raise InvalidInput(f"revision record lacks {', '.join(missing)}", element=where)
+        if d["operator"] not in OPERATORS:
+            raise InvalidInput(f"unknown revision operator {d['operator']!r}", element=where)
+        known = {f for f in cls.__dataclass_fields__}
+        return cls(**{k: v for k, v in d.items() if k in known})
+
+
+def _now() -> str:
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+
+
+def _next_version(apn: APN, version: int | None) -> int:
+    return int(version) if version is not None else 1
+
+
+def _check(problems: list[Problem]) -> None:
+    if problems:
+        raise InvalidInput(problems)
+
+
+# -- the operators --------------------------------------------------------------------------------
+
+def set_lambda(apn: APN, transition: str, value: float, reason: str, evidence: Mapping[str, Any] | None = None,
+               version: int | None = None) -> tuple[APN, Revision]:
+    """Set λ of ``transition`` and renormalise its siblings (same input places).
+
+    The choice group's total λ stays what it was: the siblings share what is left in proportion to
+    their old values (equally if they were all zero). ``value`` must lie in [0, group total].
+    """
+    if transition not in apn.transition_ids:
+        raise InvalidInput(f"unknown transition {transition!r}", element="set_lambda")
+    if not isinstance(value, (int, float)) or math.isnan(value) or value < 0:
+        raise InvalidInput(f"λ must be a non-negative number, got {value!r}", element=transition)
+    group = [transition, *apn.siblings(transition)]
+    old = {t: apn.transition(t).lam for t in group}
+    total = sum(old.values())
+    if len(group) > 1 and value > total:
+        raise InvalidInput(f"λ {value} exceeds the choice group's total {total}", element=transition)
+    new = dict(old)
+    new[transition] = float(value)
+    rest_old = total - old[transition]
+    rest_new = total - value
+    for s in group[1:]:
+        if len(group) == 1:
+            break
+        new[s] = rest_new * (old[s] / rest_old) if rest_old > 0 else rest_new / (len(group) - 1)
+    out = apn
+    for t, lam in new.items():
+        out = out.with_transition(replace(out.transition(t), lam=float(lam)))
+    rev = Revision(version=_next_version(apn, version), operator="set_lambda", target=transition,
+                   reason=reason, params={"transition": transition, "lambda": float(value)},
+                   before={"lambda": old}, after={"lambda": new}, evidence=dict(evidence or {}), time=_now())
+    return out, rev
+
+
+def set_condition(apn: APN, transition: str, condition: str | Mapping[str, str], reason: str,
+                  evidence: Mapping[str, Any] | None = None, version: int | None = None) -> tuple[APN, Revision]:
+    """Replace the condition of ``transition`` with an expression or ``{"model": name}``."""
+    if transition not in apn.transition_ids:
+        raise InvalidInput(f"unknown transition {transition!r}", element="set_condition")
+    problems: list[Problem] = []
+    cond = parse_condition(condition, f"transitions.{transition}.condition", apn.condition_variables(),
+                      lambda el, msg: problems.append(Problem("", el, msg)))
+    _check(problems)
+    t = apn.transition(transition)
+    out = apn.with_transition(replace(t, condition=cond))
+    rev = Revision(version=_next_version(apn, version), operator="set_condition", target=transition,
+                   reason=reason, params={"transition": transition, "condition": cond.to_data()},
+                   before={"condition": t.condition.to_data()}, after={"condition": cond.to_data()},
+                   evidence=dict(evidence or {}), time=_now())
+    return out, rev
+
+
+def add_transition(apn: APN, transition: str, spec: Mapping[str, Any], reason: str,
+                   evidence: Mapping[str, Any] | None = None, version: int | None = None) -> tuple[APN, Revision]:
+    """Add a new transition described like in a skill file (``in``, ``out``, ``law``, ...)."""
+    if transition in apn.transition_ids or transition in apn.place_ids:
+        raise InvalidInput(f"id {transition!r} is already used", element="add_transition")
+    problems: list[Problem] = []
+    bad = lambda el, msg: problems.append(Problem("", el, msg))  # noqa: E731
+    ids = set(apn.transition_ids) | {transition}
+    allowed = apn.condition_variables() | {f"fires_{transition}"}
+    (t,) = parse_transitions({transition: dict(spec)}, set(apn.place_ids), ids, allowed, dict(apn.laws), bad) or (None,)
+    if t is not None and not t.inputs and not t.outputs:
+        bad(f"transitions.{transition}", "a transition needs at least one arc")
+    _check(problems)
+    out = apn.with_transition(t)
+    rev = Revision(version=_next_version(apn, version), operator="add_transition", target=transition,
+                   reason=reason, params={"transition": transition, "spec": t.to_data()},
+                   before=None, after=t.to_data(), evidence=dict(evidence or {}), time=_now())
+    return out, rev
+
+
+def add_place(apn: APN, place: str, spec: Mapping[str, Any] | None, reason: str,
+              evidence: Mapping[str, Any] | None = None, version: int | None = None) -> tuple[APN, Revision]:
+    """Add a new place (``label``, optional ``judge``); connect it with :func:`add_transition`."""
+    if place in apn.place_ids or place in apn.transition_ids:
+        raise InvalidInput(f"id {place!r} is already used", element="add_place")
+    problems: list[Problem] = []
+    (p,) = parse_places({place: dict(spec or {})}, lambda el, msg: problems.append(Problem("", el, msg))) or (None,)
+    _check(problems)
+    out = apn.with_place(p)
+    rev = Revision(version=_next_version(apn, version), operator="add_place", target=place, reason=reason,
+                   params={"place": place, "spec": p.to_data()}, before=None, after=p.to_data(),
+                   evidence=dict(evidence or {}), time=_now())
+    return out, rev
+
+
+def apply(apn: APN, rev: Revision) -> APN:
+    """Replay one revision on ``apn`` (the version before it)."""
+    p = rev.params
+    try:
+        if rev.operator == "set_lambda":
+            out, _ = set_lambda(apn, p["transition"], p["lambda"], rev.reason)
+        elif rev.operator == "set_condition":
+            out, _ = set_condition(apn, p["transition"], p["condition"], rev.reason)
+        elif rev.operator == "add_transition":
+            out, _ = add_transition(apn, p["transition"], p["spec"], rev.reason)
+        elif rev.operator == "add_place":
+            out, _ = add_place(apn, p["place"], p["spec"], rev.reason)
+        else:
+            raise InvalidInput(f"unknown revision operator {rev.operator!r}", element=f"version {rev.version}")
+    except KeyError as exc:
+        raise InvalidInput(f"revision parameters lack {exc}", element=f"version {rev.version}") from None
+    return out
+
+
+class History:
+    """The revision history of one skill: the original definition plus a JSON-lines file of revisions.
+
+    ``original`` is the path of the definition as the mentor wrote it; it is only ever read.
+    The history lives at ``path`` (default: ``<original stem>.history.jsonl`` beside it).
+    """
+
+    def __init__(self, original: str | os.PathLike, path: str | os.PathLike | None = None):
+        self.original = Path(original)
+        self.path = Path(path) if path is not None else self.original.with_name(
+            self.original.stem + ".history.jsonl")
+
+    def revisions(self) -> list[Revision]:
+        if not self.path.exists():
+            return []
+        revs = []
+        for i, rec in enumerate(read_jsonl(self.path), 1):
+            rev = Revision.from_json(rec, where=f"{self.path}: record {i}")
+            if rev.version != i:
+                raise InvalidInput(f"record {i} says version {rev.version}; versions must count 1, 2, ...",
+                                   file=str(self.path))
+            revs.append(rev)
+        return revs
+
+    def versions(self) -> list[APN]:
+        """Every version: [original, after revision 1, after revision 2, ...]."""
+        nets = [load_skill(self.original)]
+        for rev in self.revisions():
+            nets.append(apply(nets[-1], rev))
+        return nets
+
+    def latest(self) -> APN:
+        return self.versions()[-1]
+
+    def version(self, n: int) -> APN:
+        nets = self.versions()
+        if not -len(nets) <= n < len(nets):
+            raise InvalidInput(f"no version {n}: versions are 0..{len(nets) - 1}", file=str(self.path))
+        return nets[n]
+
+    def record(self, rev: Revision) -> None:
+        """Append ``rev`` (its version must be the next one)."""
+        expected = len(self.revisions()) + 1
+        if rev.version != expected:
+            rev = replace(rev, version=expected)
+        append_jsonl(self.path, rev.to_json())
+
+    def next_version(self) -> int:
+        return len(self.revisions()) + 1

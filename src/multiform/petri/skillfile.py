@@ -1,0 +1,460 @@
+"""Skill files: YAML (safe loader) in, an :class:`~multiform.petri.net.APN` out, every problem named.
+
+Validation collects *all* problems of a file before failing, each naming the file, the element
+(``transitions.t1.condition``) and what is wrong, so a person fixes a file in one pass. The format
+is documented in the README.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from collections.abc import Mapping
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ..errors import InvalidInput, Problem
+from .guard import GuardError, parse_guard
+from .net import APN, FINAL_KINDS, Condition, Law, Place, Transition
+
+IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+TOP_KEYS = {"skill", "description", "env", "control_rate", "max_duration", "variables", "derived",
+            "commands", "laws", "places", "initial_marking", "transitions", "arcs"}
+PLACE_KEYS = {"label", "final", "judge"}
+TRANSITION_KEYS = {"label", "in", "out", "law", "lambda", "condition"}
+LAW_KEYS = {"inputs", "outputs", "description"}
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """A safe loader that records duplicate mapping keys instead of silently keeping the last."""
+
+    duplicates: list[tuple[str, int]]
+
+
+def _construct_mapping(loader: _UniqueKeyLoader, node: yaml.MappingNode, deep: bool = False):
+    seen: set[Any] = set()
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        if key in seen:
+            loader.duplicates.append((str(key), key_node.start_mark.line + 1))
+        try:
+            seen.add(key)
+        except TypeError:
+            pass
+    return yaml.SafeLoader.construct_mapping(loader, node, deep)
+
+
+_UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+
+
+def bundled_skills() -> dict[str, Path]:
+    """Skill files shipped with the package, by name (``pendulum``, ``nunchaku``, ...)."""
+    root = resources.files("multiform") / "skills"
+    return {Path(str(p)).stem: Path(str(p)) for p in root.iterdir() if str(p).endswith(".yaml")}
+
+
+def resolve_skill(name_or_path: str | os.PathLike) -> Path:
+    """A path as given, or a bundled skill by name."""
+    p = Path(name_or_path)
+    if p.exists() or p.suffix in (".yaml", ".yml"):
+        return p
+    skills = bundled_skills()
+    if str(name_or_path) in skills:
+        return skills[str(name_or_path)]
+    raise InvalidInput(f"no such file, and not a bundled skill ({', '.join(sorted(skills))})",
+                       file=str(name_or_path))
+
+
+def load_skill(path: str | os.PathLike) -> APN:
+    """Read and validate a skill file (a path or a bundled skill name)."""
+    path = resolve_skill(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InvalidInput("file not found", file=str(path)) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InvalidInput(f"cannot read ({exc})", file=str(path)) from None
+    return parse_skill(text, str(path))
+
+
+def parse_skill(text: str, file: str = "<string>") -> APN:
+    """Parse skill YAML text; raises :class:`InvalidInput` listing every problem."""
+    loader = _UniqueKeyLoader(text)
+    loader.duplicates = []
+    try:
+        data = loader.get_single_data()
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}" if mark is not None else ""
+        raise InvalidInput(f"not valid YAML ({getattr(exc, 'problem', exc)})", file=file, element=where) from None
+    finally:
+        loader.dispose()
+    problems = [Problem(file, f"line {line}", f"duplicate id {key!r}") for key, line in loader.duplicates]
+    if not isinstance(data, Mapping):
+        problems.append(Problem(file, "", "a skill file must be a mapping at the top level"))
+        raise InvalidInput(problems)
+    apn = build_apn(data, file, problems)
+    if problems:
+        raise InvalidInput(problems)
+    assert apn is not None
+    return apn
+
+
+def build_apn(data: Mapping[str, Any], file: str, problems: list[Problem]) -> APN | None:
+    """Build a net from the skill-file data, appending every problem found to ``problems``."""
+    def bad(element: str, message: str) -> None:
+        problems.append(Problem(file, element, message))
+
+    for key in data:
+        if key not in TOP_KEYS:
+            bad(str(key), f"unknown key (expected one of {', '.join(sorted(TOP_KEYS))})")
+    name = data.get("skill")
+    if not isinstance(name, str) or not name:
+        bad("skill", "missing or not a name")
+        name = "unnamed"
+    control_rate = _positive(data.get("control_rate", 1000.0), "control_rate", bad)
+    max_duration = _positive(data.get("max_duration", 60.0), "max_duration", bad)
+
+    variables = _variables(data.get("variables", {}), bad)
+    commands = _name_list(data.get("commands", []), "commands", bad)
+    places = parse_places(data.get("places"), bad)
+    place_ids = {p.id for p in places}
+    transitions_raw = data.get("transitions")
+    if not isinstance(transitions_raw, Mapping) or not transitions_raw:
+        bad("transitions", "missing or empty (a mapping of transition id to its definition)")
+        transitions_raw = {}
+    transition_ids = {str(t) for t in transitions_raw}
+    for tid in transition_ids & place_ids:
+        bad(f"transitions.{tid}", "duplicate id: also used by a place")
+
+    clock_names = {"time", "dwell"} | {f"dwell_{p}" for p in place_ids} | {f"fires_{t}" for t in transition_ids}
+    derived: dict[str, Any] = {}
+    raw_derived = data.get("derived", {}) or {}
+    if not isinstance(raw_derived, Mapping):
+        bad("derived", "must be a mapping of name to expression")
+        raw_derived = {}
+    for dname, expr in raw_derived.items():
+        el = f"derived.{dname}"
+        if not isinstance(dname, str) or not IDENT.match(dname):
+            bad(el, "not a valid name")
+            continue
+        if dname in variables:
+            bad(el, "duplicate id: also a state variable")
+            continue
+        try:
+            derived[dname] = parse_guard(str(expr) if isinstance(expr, (int, float)) else expr,
+                                         set(variables) | set(derived) | clock_names)
+        except GuardError as exc:
+            bad(el, str(exc))
+    allowed = frozenset(set(variables) | set(derived) | clock_names)
+
+    laws = _laws(data.get("laws"), allowed, tuple(commands), bad)
+    transitions = parse_transitions(transitions_raw, place_ids, transition_ids, allowed, laws, bad)
+    transitions = _extra_arcs(data.get("arcs"), transitions, place_ids, bad)
+
+    marking_raw = data.get("initial_marking")
+    initial: dict[str, int] = {}
+    if not isinstance(marking_raw, Mapping) or not marking_raw:
+        bad("initial_marking", "no initial marking (a mapping of place id to token count)")
+    else:
+        for p, n in marking_raw.items():
+            el = f"initial_marking.{p}"
+            if p not in place_ids:
+                bad(el, f"unknown place {p!r}")
+            elif not _is_int(n) or n < 0:
+                bad(el, f"token count must be a non-negative integer, got {n!r}")
+            elif n > 0:
+                initial[str(p)] = int(n)
+        if not initial and isinstance(marking_raw, Mapping) and marking_raw:
+            bad("initial_marking", "no place holds a token")
+
+    if not any(p.final == "success" for p in places) and places:
+        bad("places", "no place is marked 'final: success'")
+    apn = APN(name=name, places=tuple(places), transitions=tuple(transitions), initial_marking=initial,
+              variables=variables, derived=derived, commands=tuple(commands), laws=laws,
+              description=str(data.get("description", "") or ""), env=str(data.get("env", "") or ""),
+              control_rate=control_rate, max_duration=max_duration)
+    if initial and places and not problems:
+        _check_final_reachable(apn, bad)
+    return apn
+
+
+def _positive(value: Any, el: str, bad) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        bad(el, f"must be a positive number, got {value!r}")
+        return 1.0
+    return float(value)
+
+
+def _is_int(v: Any) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _variables(raw: Any, bad) -> dict[str, str]:
+    if raw is None:
+        return {}
+    if isinstance(raw, list):
+        raw = {v: "" for v in raw}
+    if not isinstance(raw, Mapping):
+        bad("variables", "must be a mapping of name to description (or a list of names)")
+        return {}
+    out = {}
+    for name, desc in raw.items():
+        if not isinstance(name, str) or not IDENT.match(name) or name.startswith("__"):
+            bad(f"variables.{name}", "not a valid variable name")
+        elif name in ("time", "dwell") or name.startswith(("dwell_", "fires_")):
+            bad(f"variables.{name}", "reserved for the net's clocks and counters")
+        else:
+            out[name] = "" if desc is None else str(desc)
+    return out
+
+
+def _name_list(raw: Any, el: str, bad) -> list[str]:
+    if raw is None:
+        return []
+    if not isinstance(raw, list):
+        bad(el, "must be a list of names")
+        return []
+    out = []
+    for i, n in enumerate(raw):
+        if not isinstance(n, str) or not IDENT.match(n):
+            bad(f"{el}[{i}]", f"not a valid name: {n!r}")
+        elif n in out:
+            bad(f"{el}[{i}]", f"duplicate id {n!r}")
+        else:
+            out.append(n)
+    return out
+
+
+def parse_places(raw: Any, bad) -> list[Place]:
+    if not isinstance(raw, Mapping) or not raw:
+        bad("places", "missing or empty (a mapping of place id to its definition)")
+        return []
+    out = []
+    for pid, spec in raw.items():
+        el = f"places.{pid}"
+        if not isinstance(pid, str) or not IDENT.match(pid):
+            bad(el, "not a valid id (letters, digits, underscore)")
+            continue
+        spec = spec if spec is not None else {}
+        if isinstance(spec, str):
+            spec = {"label": spec}
+        if not isinstance(spec, Mapping):
+            bad(el, "must be a mapping (label, final, judge) or a label")
+            continue
+        for k in spec:
+            if k not in PLACE_KEYS:
+                bad(f"{el}.{k}", f"unknown key (expected {', '.join(sorted(PLACE_KEYS))})")
+        final = spec.get("final")
+        if final is not None and final not in FINAL_KINDS:
+            bad(f"{el}.final", f"must be 'success' or 'failure', got {final!r}")
+            final = None
+        judge = spec.get("judge", []) or []
+        if not isinstance(judge, list) or not all(isinstance(j, str) for j in judge):
+            bad(f"{el}.judge", "must be a list of variable names")
+            judge = []
+        out.append(Place(id=pid, label=str(spec.get("label", "") or ""), final=final, judge=tuple(judge)))
+    return out
+
+
+def _laws(raw: Any, allowed: frozenset[str], commands: tuple[str, ...], bad) -> dict[str, Law]:
+    if raw is None:
+        return {}
+    if not isinstance(raw, Mapping):
+        bad("laws", "must be a mapping of law name to {inputs, outputs}")
+        return {}
+    out = {}
+    for name, spec in raw.items():
+        el = f"laws.{name}"
+        if not isinstance(name, str) or not IDENT.match(name):
+            bad(el, "not a valid law name")
+            continue
+        if not isinstance(spec, Mapping):
+            bad(el, "must be a mapping with 'inputs'")
+            continue
+        for k in spec:
+            if k not in LAW_KEYS:
+                bad(f"{el}.{k}", f"unknown key (expected {', '.join(sorted(LAW_KEYS))})")
+        inputs = _name_list(spec.get("inputs"), f"{el}.inputs", bad)
+        if not inputs:
+            bad(f"{el}.inputs", "a law needs at least one input variable")
+        for v in inputs:
+            if v not in allowed:
+                bad(f"{el}.inputs", f"undeclared variable {v!r}")
+        outputs = _name_list(spec.get("outputs", list(commands)), f"{el}.outputs", bad)
+        for c in outputs:
+            if c not in commands:
+                bad(f"{el}.outputs", f"unknown command {c!r} (commands: {', '.join(commands) or 'none'})")
+        if not outputs:
+            bad(f"{el}.outputs", "a law needs at least one output (declare 'commands')")
+        out[name] = Law(name=name, inputs=tuple(inputs), outputs=tuple(outputs))
+    return out
+
+
+def _arcs(raw: Any, el: str, place_ids: set[str], transition_ids: set[str], tid: str, incoming: bool,
+          bad) -> dict[str, int]:
+    if raw is None:
+        return {}
+    if isinstance(raw, str):
+        raw = [raw]
+    if isinstance(raw, list):
+        pairs = []
+        for x in raw:
+            pairs.append((x, 1))
+    elif isinstance(raw, Mapping):
+        pairs = list(raw.items())
+    else:
+        bad(el, "must be a list of place ids or a mapping of place id to arc weight")
+        return {}
+    out: dict[str, int] = {}
+    for p, w in pairs:
+        if p in transition_ids:
+            src, dst = (p, tid) if incoming else (tid, p)
+            bad(el, f"arc {src} -> {dst} connects two transitions; arcs join a place and a transition")
+        elif p not in place_ids:
+            bad(el, f"unknown place {p!r}")
+        elif not _is_int(w) or w < 1:
+            bad(el, f"arc weight for {p!r} must be a positive integer, got {w!r}")
+        elif p in out:
+            bad(el, f"duplicate arc to place {p!r}")
+        else:
+            out[str(p)] = int(w)
+    return out
+
+
+def parse_transitions(raw: Mapping[str, Any], place_ids: set[str], transition_ids: set[str],
+                 allowed: frozenset[str], laws: dict[str, Law], bad) -> list[Transition]:
+    out = []
+    for tid, spec in raw.items():
+        el = f"transitions.{tid}"
+        if not isinstance(tid, str) or not IDENT.match(tid):
+            bad(el, "not a valid id (letters, digits, underscore)")
+            continue
+        if not isinstance(spec, Mapping):
+            bad(el, "must be a mapping (in, out, law, lambda, condition, label)")
+            continue
+        for k in spec:
+            if k not in TRANSITION_KEYS:
+                bad(f"{el}.{k}", f"unknown key (expected {', '.join(sorted(TRANSITION_KEYS))})")
+        inputs = _arcs(spec.get("in"), f"{el}.in", place_ids, transition_ids, tid, True, bad)
+        outputs = _arcs(spec.get("out"), f"{el}.out", place_ids, transition_ids, tid, False, bad)
+        lam = spec.get("lambda", 1.0)
+        if isinstance(lam, bool) or not isinstance(lam, (int, float)):
+            bad(f"{el}.lambda", f"must be a number, got {lam!r}")
+            lam = 1.0
+        elif math.isnan(lam) or math.isinf(lam):
+            bad(f"{el}.lambda", f"must be finite, got {lam!r}")
+            lam = 1.0
+        elif lam < 0:
+            bad(f"{el}.lambda", f"must not be negative, got {lam!r}")
+            lam = 1.0
+        law = spec.get("law")
+        if law is not None:
+            if not isinstance(law, str):
+                bad(f"{el}.law", f"must be a law name, got {law!r}")
+                law = None
+            elif laws and law not in laws:
+                bad(f"{el}.law", f"unknown law {law!r} (laws: {', '.join(laws)})")
+        cond = parse_condition(spec.get("condition", "true"), f"{el}.condition", allowed, bad)
+        out.append(Transition(id=tid, inputs=inputs, outputs=outputs, law=law, lam=float(lam),
+                              condition=cond, label=str(spec.get("label", "") or "")))
+    return out
+
+
+def parse_condition(raw: Any, el: str, allowed: frozenset[str], bad) -> Condition:
+    if isinstance(raw, bool):
+        raw = "true" if raw else "false"
+    if isinstance(raw, Mapping):
+        model = raw.get("model")
+        if set(raw) != {"model"} or not isinstance(model, str) or not IDENT.match(model):
+            bad(el, "a learned condition is written {model: <name>}")
+            return Condition.always()
+        return Condition.learned(model)
+    if not isinstance(raw, str):
+        bad(el, f"must be an expression or {{model: <name>}}, got {raw!r}")
+        return Condition.always()
+    try:
+        return Condition.expression(raw, allowed)
+    except GuardError as exc:
+        bad(el, str(exc))
+        return Condition.always()
+
+
+def _extra_arcs(raw: Any, transitions: list[Transition], place_ids: set[str], bad) -> list[Transition]:
+    """The optional top-level ``arcs`` list ({from, to, weight}), added to the transitions' own."""
+    if raw is None:
+        return transitions
+    if not isinstance(raw, list):
+        bad("arcs", "must be a list of {from, to, weight}")
+        return transitions
+    by_id = {t.id: t for t in transitions}
+    for i, arc in enumerate(raw):
+        el = f"arcs[{i}]"
+        if not isinstance(arc, Mapping) or "from" not in arc or "to" not in arc:
+            bad(el, "an arc is {from: <id>, to: <id>, weight: <n>}")
+            continue
+        src, dst, w = arc["from"], arc["to"], arc.get("weight", 1)
+        if not _is_int(w) or w < 1:
+            bad(el, f"weight must be a positive integer, got {w!r}")
+            continue
+        kinds = ["place" if x in place_ids else "transition" if x in by_id else None for x in (src, dst)]
+        if None in kinds:
+            missing = src if kinds[0] is None else dst
+            bad(el, f"unknown place or transition {missing!r}")
+        elif kinds[0] == kinds[1]:
+            bad(el, f"arc {src} -> {dst} connects two {kinds[0]}s; arcs join a place and a transition")
+        elif kinds[0] == "place":
+            t = by_id[dst]
+            by_id[dst] = Transition(t.id, {**t.inputs, src: w}, t.outputs, t.law, t.lam, t.condition, t.label)
+        else:
+            t = by_id[src]
+            by_id[src] = Transition(t.id, t.inputs, {**t.outputs, dst: w}, t.law, t.lam, t.condition, t.label)
+    return [by_id[t.id] for t in transitions]
+
+
+def _check_final_reachable(apn: APN, bad) -> None:
+    """Structural check: some final place must be reachable from the initially marked places."""
+    reached = set(apn.initial_marking)
+    changed = True
+    while changed:
+        changed = False
+        for t in apn.transitions:
+            if t.inputs and all(p in reached for p in t.inputs) or not t.inputs:
+                new = set(t.outputs) - reached
+                if new:
+                    reached |= new
+                    changed = True
+    if not any(p in reached for p in apn.final_places):
+        bad("places", "no final place is reachable from the initial marking")
+
+
+def skill_to_data(apn: APN) -> dict[str, Any]:
+    """The skill-file mapping of a net (``load(dump(net)) == net``)."""
+    out: dict[str, Any] = {"skill": apn.name}
+    if apn.description:
+        out["description"] = apn.description
+    if apn.env:
+        out["env"] = apn.env
+    out["control_rate"] = apn.control_rate
+    out["max_duration"] = apn.max_duration
+    if apn.variables:
+        out["variables"] = dict(apn.variables)
+    if apn.derived:
+        out["derived"] = {k: g.text for k, g in apn.derived.items()}
+    if apn.commands:
+        out["commands"] = list(apn.commands)
+    if apn.laws:
+        out["laws"] = {k: law.to_data(apn.commands) for k, law in apn.laws.items()}
+    out["places"] = {p.id: p.to_data() for p in apn.places}
+    out["initial_marking"] = dict(apn.initial_marking)
+    out["transitions"] = {t.id: t.to_data() for t in apn.transitions}
+    return out
+
+
+def dump_skill(apn: APN) -> str:
+    """The net as skill-file YAML text."""
+    return yaml.safe_dump(skill_to_data(apn), sort_keys=False, allow_unicode=True, width=100)

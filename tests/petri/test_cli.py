@@ -1,0 +1,42 @@
+import shutil
+
+from multiform.cli import main
+from multiform.petri.revision import History, add_transition
+from multiform.petri.skillfile import bundled_skills
+
+
+def test_check_reports_analysis(capsys):
+    assert main(["check", "pendulum"]) == 0
+    out = capsys.readouterr().out
+    assert "reachability graph: 5 states" in out and "dead transitions: none" in out
+
+
+def test_check_fails_on_stuck_net(tmp_path, capsys):
+    path = tmp_path / "stuck.yaml"
+    text = bundled_skills()["pendulum"].read_text().replace(
+        "  fail: {label: failure, final: failure}", "  fail: {label: failure, final: failure}\n  trap: {label: lost}")
+    text += '  t9: {in: [P1], out: [trap], condition: "abs(theta) > 3"}\n'
+    path.write_text(text)
+    assert main(["check", str(path)]) == 2
+    captured = capsys.readouterr()
+    assert "check: FAILED" in captured.err
+    assert "places from which no final place can be reached: trap" in captured.out
+
+
+def test_draw_and_diff_and_export(tmp_path, capsys):
+    skill = tmp_path / "pendulum.yaml"
+    shutil.copy(bundled_skills()["pendulum"], skill)
+    hist = History(skill)
+    apn, rev = add_transition(hist.latest(), "t7", {"in": ["P2"], "out": ["P1"], "law": "swing_up"}, "push")
+    hist.record(rev)
+    assert main(["draw", str(skill), "-v", "1", "-o", str(tmp_path / "v1.svg")]) == 0
+    svg = (tmp_path / "v1.svg").read_text()
+    assert "<svg" in svg and "t7" in svg and "#d95f02" in svg      # the change in its own colour
+    assert main(["net", "diff", str(skill), "0", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "t7" in out and "1 change(s)" in out
+    assert main(["net", "export", str(skill), "-v", "1", "-o", str(tmp_path / "n.pnml")]) == 0
+    assert main(["net", "import", str(tmp_path / "n.pnml"), "-o", str(tmp_path / "back.yaml")]) == 0
+    assert "t7" in (tmp_path / "back.yaml").read_text()
+    assert main(["net", "history", str(skill)]) == 0
+    assert "version 1: add_transition t7" in capsys.readouterr().out

@@ -1,0 +1,133 @@
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from multiform.errors import InvalidInput
+from multiform.petri.firing import NetRunner
+from multiform.petri.net import APN, Condition, Place, Transition
+from multiform.petri.skillfile import load_skill
+
+from .strategies import nets
+
+
+@settings(max_examples=150, deadline=None)
+@given(nets(), st.lists(st.floats(-1.5, 1.5), min_size=1, max_size=40), st.integers(0, 2**31))
+def test_firing_obeys_state_equation_and_guards(apn, xs, seed):
+    runner = NetRunner(apn, ["x"], rng=seed, max_firings_per_tick=3)
+    A = apn.incidence
+    pre = apn.pre
+    for k, x in enumerate(xs):
+        before = np.array(runner.marking)
+        # What may fire this tick: enabled by the marking and condition true, judged independently.
+        allowed = {t.id for j, t in enumerate(apn.transitions)
+                   if (before >= pre[:, j]).all() and t.condition.guard.evaluate({"x": x}) and t.lam > 0}
+        fired = runner.tick([x], time=k * 1e-3)
+        assert len(fired) == len(set(fired)) <= 3
+        m = before.copy()
+        for tid in fired:
+            j = apn.transition_index(tid)
+            assert (m >= pre[:, j]).all(), f"{tid} fired while not enabled"
+            assert apn.transition(tid).condition.guard.evaluate({"x": x}), f"{tid} fired with a false condition"
+            m = m + A[:, j]                                  # m' = m + A·e_t
+        assert (np.array(runner.marking) == m).all()
+        if fired:
+            assert fired[0] in allowed
+        else:
+            assert not allowed or runner.outcome is not None or before[apn.place_index("end")] > 0
+        assert (np.array(runner.marking) >= 0).all()
+        if runner.outcome is not None:
+            break
+
+
+def _choice_net(lams):
+    ts = tuple(Transition(f"t{j}", {"P": 1}, {"P": 1}, None, lam, Condition.always()) for j, lam in enumerate(lams))
+    return APN(name="choice", places=(Place("P"), Place("end", final="success")), transitions=ts,
+               initial_marking={"P": 1})
+
+
+@settings(max_examples=20, deadline=None, derandomize=True)
+@given(st.lists(st.sampled_from([0.0, 0.1, 0.5, 1.0, 2.0, 3.5, 7.0]), min_size=2, max_size=5)
+       .filter(lambda ls: sum(ls) > 0))
+def test_choice_frequencies_match_normalised_lambda(lams):
+    runner = NetRunner(_choice_net(lams), [], rng=np.random.default_rng(12345))
+    counts = np.zeros(len(lams))
+    cands = list(range(len(lams)))
+    for _ in range(10_000):
+        counts[runner.choose(cands)] += 1
+    freq = counts / counts.sum()
+    expected = np.array(lams) / sum(lams)
+    assert np.abs(freq - expected).max() <= 0.02
+    assert (counts[np.array(lams) == 0] == 0).all()
+
+
+def test_all_zero_lambda_fires_nothing():
+    runner = NetRunner(_choice_net([0.0, 0.0]), [], rng=0)
+    assert runner.tick([], 0.0) == []
+
+
+def test_clocks_counters_and_active_law():
+    apn = load_skill("pendulum")
+    names = ["theta", "omega", "x", "xdot"]
+    r = NetRunner(apn, names, rng=0)
+    hanging = [np.pi, 0.0, 0.0, 0.0]
+    assert r.tick(hanging, 0.0) == ["t0"]
+    assert r.active_laws == {"v_cmd": "swing_up"}
+    t = 0.0
+    fired = []
+    while t < 2.5:
+        t += 0.001
+        fired += r.tick(hanging, t)
+    assert fired == ["t2"]                       # dwell > 2.0 once, then the clock restarts
+    assert r.fire_counts()["t2"] == 1
+    assert r.values[r.slots["dwell_P1"]] == pytest.approx(t - r.firings[-1].time)
+    up = [0.1, 0.5, 0.0, 0.0]
+    assert r.tick(up, t + 0.001) == ["t1"]
+    assert r.marking_dict() == {"P2": 1}
+    assert r.active_laws == {"v_cmd": "balance"}
+    r.tick(up, t + 5.2)                          # no t3 (|theta| < 0.25), dwell > 5: success
+    assert r.outcome == "success"
+
+
+def test_strict_condition_never_holds_and_is_counted():
+    r = NetRunner(load_skill("pendulum_strict"), ["theta", "omega", "x", "xdot"], rng=0)
+    for k in range(100):
+        r.tick([0.01, 0.02, 0.0, 0.0], k * 1e-3)
+    t1 = r.apn.transition_index("t1")
+    assert r.enabled_ticks[t1] == 99 and r.held_ticks[t1] == 0
+
+
+def test_missing_state_variable_is_refused():
+    with pytest.raises(InvalidInput, match="no variable"):
+        NetRunner(load_skill("pendulum"), ["theta", "omega"])
+
+
+def test_learned_condition_model_is_called():
+    class Model:
+        input_names = ("theta", "omega")
+        def __call__(self, x):
+            return x[0] ** 2 + x[1] ** 2 < 0.01
+
+    from multiform.petri.revision import set_condition
+    apn, _ = set_condition(load_skill("pendulum_strict"), "t1", {"model": "t1_learned"}, "test")
+    with pytest.raises(InvalidInput, match="t1_learned"):
+        NetRunner(apn, ["theta", "omega", "x", "xdot"])
+    r = NetRunner(apn, ["theta", "omega", "x", "xdot"], learned={"t1_learned": Model()}, rng=0)
+    r.tick([3.0, 0.0, 0, 0], 0.0)
+    assert r.tick([0.05, 0.05, 0, 0], 0.001) == ["t1"]
+
+
+def test_concurrent_tokens():
+    # Two tokens in P0 feed two branches that join; a P/T net, not a state machine.
+    ps = (Place("P0"), Place("A"), Place("B"), Place("end", final="success"))
+    ts = (Transition("ta", {"P0": 1}, {"A": 1}, None, 1.0, Condition.always()),
+          Transition("tb", {"P0": 1}, {"B": 1}, None, 1.0, Condition.always()),
+          Transition("join", {"A": 1, "B": 1}, {"end": 1}, None, 1.0, Condition.always()))
+    apn = APN(name="fork", places=ps, transitions=ts, initial_marking={"P0": 2})
+    outcomes = set()
+    for seed in range(20):
+        r = NetRunner(apn, [], rng=seed)
+        for k in range(5):
+            r.tick([], k * 1e-3)
+        outcomes.add(r.outcome)
+    assert "success" in outcomes

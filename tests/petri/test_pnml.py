@@ -1,0 +1,69 @@
+import warnings
+
+import pytest
+
+from multiform.errors import InvalidInput
+from multiform.petri.pnml import from_pnml, read_pnml, to_pnml, write_pnml
+from multiform.petri.revision import add_transition, set_condition
+from multiform.petri.skillfile import load_skill
+
+
+def _nets():
+    apn = load_skill("pendulum")
+    apn2, _ = set_condition(apn, "t1", {"model": "t1_learned"}, "x")
+    apn3, _ = add_transition(apn2, "t7", {"in": {"P2": 2}, "out": ["P1"], "law": "swing_up", "lambda": 0.25}, "x")
+    return [apn, load_skill("pendulum_strict"), apn3]
+
+
+@pytest.mark.parametrize("apn", _nets(), ids=["pendulum", "strict", "revised"])
+def test_round_trip_is_identity(apn):
+    back = from_pnml(to_pnml(apn))
+    assert back == apn
+    for t in apn.transitions:
+        b = back.transition(t.id)
+        assert (b.lam, str(b.condition), b.law, dict(b.inputs), dict(b.outputs)) == \
+               (t.lam, str(t.condition), t.law, dict(t.inputs), dict(t.outputs))
+
+
+def test_pm4py_reads_the_export(tmp_path):
+    pm4py_pnml = pytest.importorskip("pm4py.objects.petri_net.importer.variants.pnml")
+    apn = _nets()[2]
+    path = tmp_path / "net.pnml"
+    write_pnml(apn, path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        net, im, fm, stochastic = pm4py_pnml.import_net(str(path), parameters={"return_stochastic_map": True})
+    assert {p.name for p in net.places} == set(apn.place_ids)
+    assert {t.name for t in net.transitions} == set(apn.transition_ids)
+    arcs = {(a.source.name, a.target.name, a.weight) for a in net.arcs}
+    expected = {(p, t.id, w) for t in apn.transitions for p, w in t.inputs.items()} | \
+               {(t.id, p, w) for t in apn.transitions for p, w in t.outputs.items()}
+    assert arcs == expected
+    assert {p.name: n for p, n in im.items()} == dict(apn.initial_marking)
+    weights = {t.name: rv.get_weight() for t, rv in stochastic.items()}
+    assert weights == {t.id: t.lam for t in apn.transitions}
+
+
+def test_lenient_reading_without_namespace_or_page():
+    text = """<pnml><net id="n" type="ptnet">
+      <place id="a"><initialMarking><text>1</text></initialMarking></place>
+      <place id="b"><toolspecific tool="multiform" version="1"><place>{"final": "success"}</place></toolspecific></place>
+      <transition id="t"/>
+      <arc id="x" source="a" target="t"/><arc id="y" source="t" target="b"><inscription><text>2</text></inscription></arc>
+    </net></pnml>"""
+    apn = from_pnml(text)
+    assert apn.transition("t").outputs == {"b": 2}
+    assert apn.initial_marking == {"a": 1}
+    assert str(apn.transition("t").condition) == "true"
+
+
+def test_bad_pnml_is_refused(tmp_path):
+    with pytest.raises(InvalidInput, match="not well-formed"):
+        from_pnml("<pnml><net>", "x.pnml")
+    text = to_pnml(load_skill("pendulum")).replace('source="P0" target="t0"', 'source="P0" target="P1"')
+    with pytest.raises(InvalidInput, match="connects two places"):
+        from_pnml(text, "x.pnml")
+    bad = tmp_path / "bad.pnml"
+    bad.write_text(to_pnml(load_skill("pendulum")).replace('"condition": "dwell &gt; 2.0"', '"condition": "dwell.x"'))
+    with pytest.raises(InvalidInput, match="transitions.t2.condition"):
+        read_pnml(bad)
