@@ -1,0 +1,113 @@
+import hashlib
+
+import h5py
+import numpy as np
+import pytest
+
+from multiform.demos.dataset import read_dataset, write_dataset
+from multiform.demos.episode import Episode, SegmentLabel
+from multiform.errors import InvalidInput
+
+NAMES = ("theta", "omega", "x", "xdot")
+
+
+def _episode(seed: int, n: int = 300, outcome: str = "success") -> Episode:
+    rng = np.random.default_rng(seed)
+    tags = np.array(["t0"] * (n // 3) + ["t1"] * (n - n // 3))
+    labels = [SegmentLabel(0, n // 3, "t0", True), SegmentLabel(n // 3, n, "t1", outcome == "success")]
+    return Episode(obs=rng.normal(size=(n, 4)), actions=rng.normal(size=(n, 1)), transitions=tags,
+                   observation_names=NAMES, command_names=("v_cmd",), dt=1e-3, seed=seed,
+                   reset_options={"length": 0.4}, labels=labels, outcome=outcome)
+
+
+@pytest.fixture
+def demo_file(tmp_path):
+    eps = [_episode(0), _episode(1, outcome="failure"), _episode(2, n=500)]
+    return write_dataset(tmp_path / "demos.h5", eps, "pendulum", "multiform/ArmPendulum-v0", {"action_mode": "ee"}), eps
+
+
+def _digest(path):
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def test_round_trip(demo_file):
+    path, eps = demo_file
+    ds = read_dataset(path)
+    assert len(ds) == 3 and ds.skill == "pendulum" and ds.env_kwargs == {"action_mode": "ee"}
+    for a, b in zip(eps, ds):
+        assert np.array_equal(a.obs, b.obs) and np.array_equal(a.actions, b.actions)
+        assert list(a.transitions) == list(b.transitions)
+        assert a.labels == b.labels and a.outcome == b.outcome and a.reset_options == b.reset_options
+    s = ds.summary()
+    assert s["demos"] == 3 and s["success"] == 2 and s["samples_per_transition"]["t0"] == 100 + 100 + 166
+
+
+def test_robomimic_layout(demo_file):
+    path, _ = demo_file
+    with h5py.File(path) as f:
+        assert f["data"].attrs["format_version"] == 1
+        assert f["data/demo_0"].attrs["num_samples"] == 300
+        assert f["data/demo_0/obs/theta"].shape == (300,)
+        assert f["data/demo_0/actions"].shape == (300, 1)
+        assert f["data/demo_0/dones"][-1] == 1
+        assert [x.decode() for x in f["mask/success"][()]] == ["demo_0", "demo_2"]
+        assert [x.decode() for x in f["mask/failure"][()]] == ["demo_1"]
+
+
+def test_truncated_file_refused_and_untouched(demo_file):
+    path, _ = demo_file
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    before = _digest(path)
+    with pytest.raises(InvalidInput) as info:
+        read_dataset(path)
+    assert str(path) in str(info.value)
+    assert _digest(path) == before
+
+
+def test_corrupt_bytes_refused(tmp_path):
+    path = tmp_path / "junk.h5"
+    path.write_bytes(b"\x89HDF\r\n" + bytes(range(256)) * 10)
+    with pytest.raises(InvalidInput, match="not a readable HDF5 file"):
+        read_dataset(path)
+
+
+def test_wrong_version_names_group(demo_file):
+    path, _ = demo_file
+    with h5py.File(path, "r+") as f:
+        f["data"].attrs["format_version"] = 7
+    before = _digest(path)
+    with pytest.raises(InvalidInput, match=r"data: format version 7"):
+        read_dataset(path)
+    assert _digest(path) == before
+
+
+@pytest.mark.parametrize("mutate, fragment", [
+    (lambda f: f["data/demo_1/obs/omega"].__setitem__(5, np.nan), "data/demo_1/obs/omega: non-finite value at sample 5"),
+    (lambda f: f["data/demo_2/obs"].__delitem__("xdot"), "data/demo_2/obs/xdot: missing dataset"),
+    (lambda f: (f["data/demo_0"].__delitem__("actions"),
+                f["data/demo_0"].create_dataset("actions", data=np.zeros((300, 2)))), "data/demo_0/actions: shape (300, 2)"),
+    (lambda f: f["data/demo_0"].attrs.__setitem__("num_samples", 299), "data/demo_0/obs/theta: shape (300,), expected (299,)"),
+    (lambda f: (f["data/demo_1"].__delitem__("labels"),
+                f["data/demo_1"].create_dataset("labels", data=np.zeros(3))), "data/demo_1/labels: expected fields"),
+])
+def test_bad_field_names_demo_and_field(demo_file, mutate, fragment):
+    path, _ = demo_file
+    with h5py.File(path, "r+") as f:
+        mutate(f)
+    before = _digest(path)
+    with pytest.raises(InvalidInput) as info:
+        read_dataset(path)
+    assert fragment in str(info.value)
+    assert _digest(path) == before
+
+
+def test_failed_write_leaves_old_file(demo_file):
+    path, eps = demo_file
+    before = _digest(path)
+    bad = _episode(9)
+    bad.observation_names = ("a", "b", "c", "d")
+    with pytest.raises(InvalidInput):
+        write_dataset(path, [eps[0], bad], "pendulum", "x")
+    assert _digest(path) == before
+    assert [p.name for p in path.parent.iterdir()] == ["demos.h5"]
