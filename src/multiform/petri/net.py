@@ -145,6 +145,7 @@ class APN:
     env: str = ""
     control_rate: float = 1000.0
     max_duration: float = 60.0
+    safety: Mapping[str, Any] = field(default_factory=dict)
 
     # -- lookup -------------------------------------------------------------------------------
     @cached_property

@@ -23,7 +23,7 @@ from .net import APN, FINAL_KINDS, Condition, Law, Place, Transition
 
 IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 TOP_KEYS = {"skill", "description", "env", "control_rate", "max_duration", "variables", "derived",
-            "commands", "laws", "places", "initial_marking", "transitions", "arcs"}
+            "commands", "laws", "places", "initial_marking", "transitions", "arcs", "safety"}
 PLACE_KEYS = {"label", "final", "judge"}
 TRANSITION_KEYS = {"label", "in", "out", "law", "lambda", "condition"}
 LAW_KEYS = {"inputs", "outputs", "description"}
@@ -49,6 +49,12 @@ def _construct_mapping(loader: _UniqueKeyLoader, node: yaml.MappingNode, deep: b
 
 
 _UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+# YAML 1.2 floats: PyYAML (YAML 1.1) reads 1e4 or 1.0e4 as strings; a skill author means numbers.
+_UniqueKeyLoader.yaml_implicit_resolvers = {k: list(v) for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+_UniqueKeyLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"))
 
 
 def bundled_skills() -> dict[str, Path]:
@@ -153,6 +159,7 @@ def build_apn(data: Mapping[str, Any], file: str, problems: list[Problem]) -> AP
     allowed = frozenset(set(variables) | set(derived) | clock_names)
 
     laws = _laws(data.get("laws"), allowed, tuple(commands), bad)
+    safety = parse_safety(data.get("safety"), set(variables) | set(derived), tuple(commands), bad)
     transitions = parse_transitions(transitions_raw, place_ids, transition_ids, allowed, laws, bad)
     transitions = _extra_arcs(data.get("arcs"), transitions, place_ids, bad)
 
@@ -177,10 +184,72 @@ def build_apn(data: Mapping[str, Any], file: str, problems: list[Problem]) -> AP
     apn = APN(name=name, places=tuple(places), transitions=tuple(transitions), initial_marking=initial,
               variables=variables, derived=derived, commands=tuple(commands), laws=laws,
               description=str(data.get("description", "") or ""), env=str(data.get("env", "") or ""),
-              control_rate=control_rate, max_duration=max_duration)
+              control_rate=control_rate, max_duration=max_duration, safety=safety)
     if initial and places and not problems:
         _check_final_reachable(apn, bad)
     return apn
+
+
+def parse_safety(raw: Any, variables: set[str], commands: tuple[str, ...], bad) -> dict[str, Any]:
+    """The ``safety`` section: command bounds and rates, workspace limits, divergence threshold."""
+    if raw is None:
+        return {}
+    if not isinstance(raw, Mapping):
+        bad("safety", "must be a mapping (commands, workspace, divergence)")
+        return {}
+    out: dict[str, Any] = {}
+    for k in raw:
+        if k not in ("commands", "workspace", "divergence"):
+            bad(f"safety.{k}", "unknown key (expected commands, workspace, divergence)")
+    cmds = raw.get("commands") or {}
+    if not isinstance(cmds, Mapping):
+        bad("safety.commands", "must map command names to {min, max, rate}")
+        cmds = {}
+    out["commands"] = {}
+    for c, spec in cmds.items():
+        el = f"safety.commands.{c}"
+        if c not in commands:
+            bad(el, f"unknown command {c!r}")
+            continue
+        if not isinstance(spec, Mapping) or not set(spec) <= {"min", "max", "rate"}:
+            bad(el, "must be {min, max, rate}")
+            continue
+        vals = {k: _number(spec[k], f"{el}.{k}", bad) for k in spec}
+        if "min" in vals and "max" in vals and vals["min"] >= vals["max"]:
+            bad(el, "min must be below max")
+        if vals.get("rate", 1.0) <= 0:
+            bad(f"{el}.rate", "must be positive")
+        out["commands"][c] = vals
+    ws = raw.get("workspace") or {}
+    if not isinstance(ws, Mapping):
+        bad("safety.workspace", "must map variable names to {min, max, command}")
+        ws = {}
+    out["workspace"] = {}
+    for v, spec in ws.items():
+        el = f"safety.workspace.{v}"
+        if v not in variables:
+            bad(el, f"undeclared variable {v!r}")
+            continue
+        if not isinstance(spec, Mapping) or not {"min", "max", "command"} <= set(spec):
+            bad(el, "must be {min, max, command}")
+            continue
+        if spec["command"] not in commands:
+            bad(f"{el}.command", f"unknown command {spec['command']!r}")
+            continue
+        lo, hi = _number(spec["min"], f"{el}.min", bad), _number(spec["max"], f"{el}.max", bad)
+        if lo >= hi:
+            bad(el, "min must be below max")
+        out["workspace"][v] = {"min": lo, "max": hi, "command": spec["command"]}
+    if "divergence" in raw:
+        out["divergence"] = _number(raw["divergence"], "safety.divergence", bad)
+    return {k: v for k, v in out.items() if v != {}}
+
+
+def _number(value: Any, el: str, bad) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        bad(el, f"must be a finite number, got {value!r}")
+        return 0.0
+    return float(value)
 
 
 def _positive(value: Any, el: str, bad) -> float:
@@ -449,6 +518,8 @@ def skill_to_data(apn: APN) -> dict[str, Any]:
         out["commands"] = list(apn.commands)
     if apn.laws:
         out["laws"] = {k: law.to_data(apn.commands) for k, law in apn.laws.items()}
+    if apn.safety:
+        out["safety"] = {k: v for k, v in apn.safety.items() if v}
     out["places"] = {p.id: p.to_data() for p in apn.places}
     out["initial_marking"] = dict(apn.initial_marking)
     out["transitions"] = {t.id: t.to_data() for t in apn.transitions}
