@@ -5,7 +5,8 @@ The tick (called once per control step, see the README's "Tick semantics"):
 1. the state variables are read, derived variables computed, clocks updated (``time``,
    ``dwell_<place>`` = seconds since the place last received a token, ``fires_<t>``);
 2. the candidates are the transitions enabled by the marking (every input place holds at least the
-   arc weight) whose condition holds;
+   arc weight) whose condition holds (a condition that cannot be evaluated — ``sqrt`` of a negative
+   number, say — does not hold; such a derived variable is NaN);
 3. if there are candidates, one fires, chosen with probability proportional to λ (a candidate with
    λ = 0 never fires); firing moves the marking by A[:, t] and resets the output places' clocks;
 4. the law of the fired transition becomes the active law for the commands it writes; transitions
@@ -18,6 +19,7 @@ at most once per tick, so a self-loop whose condition stays true cannot spin.
 
 from __future__ import annotations
 
+import math
 import operator
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -44,6 +46,15 @@ class Firing:
     tick: int
     time: float
     transition: str
+
+
+@dataclass(frozen=True)
+class Choice:
+    """A tick where several candidates competed: which one λ picked, and the field."""
+
+    tick: int
+    chosen: str
+    candidates: tuple[str, ...]
 
 
 class NetRunner:
@@ -138,6 +149,7 @@ class NetRunner:
         self.tick_index = 0
         self.time = 0.0
         self.firings: list[Firing] = []
+        self.choices: list[Choice] = []
         self.active_laws: dict[str, str] = {}
         self.outcome: str | None = None
         n = len(self._guards)
@@ -159,7 +171,10 @@ class NetRunner:
             else:
                 v[: self._n_state] = got
         for slot, f in self._derived:
-            v[slot] = f(v)
+            try:
+                v[slot] = f(v)
+            except (ArithmeticError, ValueError):     # sqrt(-1), overflow: the value is undefined
+                v[slot] = math.nan
         v[self._time_slot] = time
         entered = self._entered
         for i, n in enumerate(self.marking):
@@ -175,7 +190,11 @@ class NetRunner:
         out = []
         for j in self._enabled:
             self.enabled_ticks[j] += 1
-            if self._guards[j](v):
+            try:
+                held = self._guards[j](v)
+            except (ArithmeticError, ValueError):      # an undefined condition does not hold
+                held = False
+            if held:
                 self.held_ticks[j] += 1
                 out.append(j)
         return out
@@ -238,6 +257,9 @@ class NetRunner:
             j = self.choose(cands)
             if j is None:
                 break
+            if len(cands) > 1:
+                ids = self.apn.transition_ids
+                self.choices.append(Choice(self.tick_index, ids[j], tuple(ids[c] for c in cands)))
             self.fire(j)
             done.add(j)
             fired.append(self.apn.transition_ids[j])

@@ -1,0 +1,169 @@
+"""The executor: runs a skill (net + laws + inverse model) on a Gymnasium env at the control rate.
+
+One tick (see the README's "Tick semantics"): read the state → the net observes it and fires at
+most one transition → the active law(s) compute the end-effector command → the safety limits clip
+it → the inverse model (if any) turns it into joint torques, clipped to the actuator limits → the
+env steps. The executor reads only the env's observations (the robot's own sensors); it never
+looks at simulator internals, except to keep poses for a video when asked.
+
+Works on any env that exposes ``observation_names`` and ``command_names`` (on ``env.unwrapped``)
+matching the skill's variables and commands. A non-finite or diverging state, or an env that
+terminates on divergence, ends the trial as ``diverged`` (a failure), never a crash.
+"""
+
+from __future__ import annotations
+
+import operator
+import time as _time
+from collections.abc import Mapping
+from typing import Any, Protocol
+
+import gymnasium as gym
+import numpy as np
+
+from ..errors import InvalidInput
+from ..petri.firing import LearnedCondition, NetRunner
+from ..petri.net import APN
+from .safety import Saturator
+from .trace import Trace
+
+
+class Law(Protocol):
+    """A fitted control law (e.g. :class:`multiform.learn.gp.GPLaw`)."""
+
+    def predict_one(self, x: np.ndarray) -> np.ndarray: ...
+
+
+class InverseModel(Protocol):
+    """Maps the robot's observation and an end-effector command to joint torques."""
+
+    def torques(self, obs: np.ndarray, command: np.ndarray) -> np.ndarray: ...
+
+
+class Executor:
+    """Runs trials of one net version with its laws on one env.
+
+    ``laws`` maps law names to fitted laws; ``learned`` maps learned-condition names to models;
+    with an ``inverse_model`` the env must take joint torques, without one it must take the
+    end-effector command itself.
+    """
+
+    def __init__(self, apn: APN, env: gym.Env, laws: Mapping[str, Law],
+                 learned: Mapping[str, LearnedCondition] | None = None,
+                 inverse_model: InverseModel | None = None, net_version: int = 0):
+        base = env.unwrapped
+        self.apn, self.env, self.laws, self.inverse_model = apn, env, dict(laws), inverse_model
+        self.net_version = net_version
+        self.obs_names = tuple(base.observation_names)
+        self.cmd_names = tuple(base.command_names)
+        missing = [c for c in apn.commands if c not in self.cmd_names]
+        if missing:
+            raise InvalidInput(f"the env has no command(s) {', '.join(missing)}", element="commands")
+        used = {t.law for t in apn.transitions if t.law}
+        absent = sorted(used - set(self.laws))
+        if absent:
+            raise InvalidInput(f"no fitted law for {', '.join(absent)}", element="laws")
+        self.dt = float(base.dt)
+        self.runner = NetRunner(apn, self.obs_names, learned)
+        slots = self.runner.slots
+        self._n_state = len(apn.variables)
+        self._value_names = tuple(list(apn.variables) + list(apn.derived))
+        self._cmd_index = {c: i for i, c in enumerate(self.cmd_names)}
+        self._plans: dict[str, tuple[Law, Any, np.ndarray, list[int]]] = {}
+        for name, law in self.laws.items():
+            spec = apn.laws.get(name)
+            if spec is None:
+                continue
+            idx = [slots[v] if v in slots else None for v in spec.inputs]
+            if None in idx:
+                raise InvalidInput(f"law {name} reads {spec.inputs}, not all are net variables", element=f"laws.{name}")
+            getter = operator.itemgetter(*idx)
+            outs = [self._cmd_index[c] for c in spec.outputs]
+            self._plans[name] = (law, getter, np.empty(len(idx)), outs)
+        torque_low = torque_high = None
+        if inverse_model is not None:
+            space = env.action_space
+            torque_low, torque_high = space.low.astype(float), space.high.astype(float)
+        self.saturator = Saturator(apn.safety, self.cmd_names, slots, self.dt, torque_low, torque_high)
+
+    def run(self, seed: int, options: Mapping[str, Any] | None = None, max_duration: float | None = None,
+            qpos_every: int = 0) -> Trace:
+        """One trial from the initial marking; ``qpos_every`` > 0 keeps simulator poses for a video."""
+        env, runner, sat = self.env, self.runner, self.saturator
+        runner.rng = np.random.default_rng([seed, 2])
+        runner.reset()
+        sat.reset()
+        wall0 = _time.perf_counter()
+        obs, info = env.reset(seed=seed, options=dict(options) if options else None)
+        n_ticks = int(round((max_duration or self.apn.max_duration) / self.dt)) + 1
+        n_obs, n_cmd, n_val = len(self.obs_names), len(self.cmd_names), len(self._value_names)
+        n_places = len(self.apn.places)
+        rec_obs = np.zeros((n_ticks, n_obs), np.float32)
+        rec_val = np.zeros((n_ticks, n_val), np.float32)
+        rec_cmd = np.zeros((n_ticks, n_cmd), np.float32)
+        rec_raw = np.zeros((n_ticks, n_cmd), np.float32)
+        rec_mark = np.zeros((n_ticks, n_places), np.int16)
+        rec_dwell = np.zeros((n_ticks, n_places), np.float32)
+        dwell_slots = [runner.slots[f"dwell_{p}"] for p in self.apn.place_ids]
+        dwell_get = operator.itemgetter(*dwell_slots)
+        val_get = operator.itemgetter(*range(n_val)) if n_val > 1 else (lambda v: v[0])
+        poses: list[np.ndarray] = []
+        data = getattr(env.unwrapped, "data", None)
+        cmd = [0.0] * n_cmd
+        plan: list[tuple[Law, Any, np.ndarray, list[int]]] = []
+        n_fired = 0
+        inverse = self.inverse_model
+        outcome = "timeout"
+        k = 0
+        dt = self.dt
+        for k in range(n_ticks):
+            t = k * dt
+            runner.tick(obs.tolist(), t)
+            values = runner.values
+            rec_obs[k] = obs
+            rec_val[k] = val_get(values)
+            rec_mark[k] = runner.marking
+            rec_dwell[k] = dwell_get(values)
+            if qpos_every and k % qpos_every == 0 and data is not None:
+                poses.append(data.qpos.copy())
+            if runner.outcome is not None:
+                outcome = runner.outcome
+                rec_cmd[k] = cmd
+                rec_raw[k] = cmd
+                break
+            if sat.diverged(values, self._n_state):
+                outcome = "diverged"
+                break
+            if len(runner.firings) != n_fired:
+                n_fired = len(runner.firings)
+                plan = [self._plans[name] for name in dict.fromkeys(runner.active_laws.values())]
+            for law, getter, buf, outs in plan:
+                buf[:] = getter(values)
+                y = law.predict_one(buf)
+                for j, i in enumerate(outs):
+                    cmd[i] = float(y[j])
+            rec_raw[k] = cmd
+            cmd = sat.command(cmd, values, k)
+            rec_cmd[k] = cmd
+            if inverse is not None:
+                action = sat.torque(inverse.torques(obs, np.asarray(cmd)), k)
+            else:
+                action = np.asarray(cmd)
+            obs, _, terminated, truncated, info = env.step(action)
+            if terminated:
+                outcome = "diverged" if info.get("diverged", True) else "failure"
+                k += 1
+                break
+        n = min(k + 1, n_ticks)
+        if outcome == "timeout":
+            n = n_ticks
+        return Trace(seed=seed, dt=dt, obs=rec_obs[:n], observation_names=self.obs_names, values=rec_val[:n],
+                     value_names=self._value_names, commands=rec_cmd[:n], raw_commands=rec_raw[:n],
+                     command_names=self.cmd_names, marking=rec_mark[:n], dwell=rec_dwell[:n],
+                     place_ids=self.apn.place_ids, firings=list(runner.firings), outcome=outcome,
+                     choices=list(runner.choices),
+                     net_version=self.net_version, options=dict(options or {}), clips=sat.log.to_json(),
+                     enabled_ticks=dict(zip(self.apn.transition_ids, runner.enabled_ticks)),
+                     held_ticks=dict(zip(self.apn.transition_ids, runner.held_ticks)),
+                     qpos=np.array(poses) if poses else None, qpos_every=qpos_every,
+                     wall_time=_time.perf_counter() - wall0)
