@@ -1,0 +1,190 @@
+"""Views of recorded episodes in a skill's own variables, and the training sets cut from them.
+
+A demonstration stores raw observations and, per sample, the transition the mentor was executing.
+Everything the learners need is read off that through the net: the value of every condition
+variable at every sample (derived variables, ``time``, ``dwell_<place>``, ``fires_<t>``), the
+samples of each law from successful segments, the mentor's switching states, and the states seen
+while each place held the token.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..demos.episode import Episode
+from ..petri.net import APN
+
+
+def token_place(apn: APN, transition: str) -> str | None:
+    """The place the token sits in while ``transition``'s maneuver runs (its first output place)."""
+    if transition not in apn.transition_ids:
+        return None
+    outs = list(apn.transition(transition).outputs)
+    return outs[0] if outs else None
+
+
+def value_matrix(apn: APN, ep: Episode, names: Sequence[str]) -> np.ndarray:
+    """The values of ``names`` (state, derived and clock variables) at every sample of ``ep``.
+
+    Clocks follow the mentor's tags: a run of one tag counts as one firing of that transition at its
+    first sample, so ``dwell_<place>`` is the time since the run that put the token there began.
+    """
+    n = ep.num_samples
+    cols: dict[str, np.ndarray] = {}
+    obs_index = {k: i for i, k in enumerate(ep.observation_names)}
+    for v in apn.variables:
+        if v in obs_index:
+            cols[v] = ep.obs[:, obs_index[v]]
+    if apn.derived:
+        order = list(apn.variables) + list(apn.derived)
+        slots = {k: i for i, k in enumerate(order)}
+        fns = [(slots[k], g.compile(slots)) for k, g in apn.derived.items()]
+        base = np.zeros((n, len(order)))
+        for k, v in enumerate(apn.variables):
+            if v in cols:
+                base[:, k] = cols[v]
+        for row in base:
+            vals = row.tolist()
+            for slot, f in fns:
+                try:
+                    vals[slot] = f(vals)
+                except (ArithmeticError, ValueError):
+                    vals[slot] = np.nan
+            row[:] = vals
+        for k, v in enumerate(order):
+            cols[v] = base[:, k]
+    t = np.arange(n) * ep.dt
+    cols["time"] = t
+    wanted_clock = [x for x in names if x.startswith(("dwell_", "fires_"))]
+    if wanted_clock:
+        segs = ep.segments()
+        for x in wanted_clock:
+            col = np.zeros(n)
+            if x.startswith("dwell_"):
+                place = x[len("dwell_"):]
+                for s, e, tag in segs:
+                    if token_place(apn, tag) == place:
+                        col[s:e] = t[s:e] - t[s]
+            else:
+                tid = x[len("fires_"):]
+                count = 0
+                for s, e, tag in segs:
+                    if tag == tid:
+                        count += 1
+                    col[s:e] = count
+            cols[x] = col
+    missing = [x for x in names if x not in cols]
+    if missing:
+        raise KeyError(f"episode has no value for {', '.join(missing)}")
+    return np.stack([cols[x] for x in names], axis=1) if names else np.zeros((n, 0))
+
+
+def success_mask(ep: Episode) -> np.ndarray:
+    """Per sample: True inside a segment the mentor labelled success."""
+    mask = np.zeros(ep.num_samples, dtype=bool)
+    for lab in ep.labels:
+        if lab.success:
+            mask[lab.start:lab.end] = True
+    return mask
+
+
+@dataclass
+class LawData:
+    """A law's training samples: inputs ``X``, the mentor's commands ``Y``, and the episode index."""
+
+    X: np.ndarray
+    Y: np.ndarray
+    episode: np.ndarray
+
+
+def law_data(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool = True) -> LawData:
+    """The samples in which the mentor executed a transition run by ``law``.
+
+    With ``success_only`` (the paper: "the robot only learns from the successful demonstration"),
+    only samples inside segments the mentor labelled success are kept.
+    """
+    spec = apn.laws[law]
+    tids = {t.id for t in apn.transitions if t.law == law}
+    out_idx = None
+    xs, ys, eps = [], [], []
+    for k, ep in enumerate(episodes):
+        if out_idx is None:
+            out_idx = [ep.command_names.index(c) for c in spec.outputs]
+        keep = np.isin(ep.transitions, list(tids))
+        if success_only:
+            keep &= success_mask(ep)
+        if not keep.any():
+            continue
+        X = value_matrix(apn, ep, spec.inputs)[keep]
+        xs.append(X)
+        ys.append(ep.actions[keep][:, out_idx])
+        eps.append(np.full(len(X), k))
+    if not xs:
+        return LawData(np.zeros((0, len(spec.inputs))), np.zeros((0, len(spec.outputs))), np.zeros(0, int))
+    return LawData(np.concatenate(xs), np.concatenate(ys), np.concatenate(eps))
+
+
+@dataclass
+class SwitchData:
+    """States where the mentor switched into a transition (positives) and did not (negatives)."""
+
+    positives: np.ndarray
+    negatives: np.ndarray
+    pos_episode: np.ndarray
+    neg_episode: np.ndarray
+    switch_states: np.ndarray        # exactly the first sample of each successful switch
+    switch_episode: np.ndarray
+
+
+def switch_data(apn: APN, episodes: Sequence[Episode], transition: str, names: Sequence[str],
+                window: float = 0.02, margin: float = 0.3) -> SwitchData:
+    """Where the mentor switched into ``transition`` versus where it did not.
+
+    Positives: the samples within ``window`` seconds after the first sample of each successful
+    segment of ``transition`` (a person's switch is a moment, not a sample). Negatives: the samples
+    of the maneuvers that ran in the same place before the switch, further than ``margin`` seconds
+    from any switch (those are states where the mentor chose *not* to switch).
+    """
+    pre = apn.transition(transition).preset
+    before = {t.id for t in apn.transitions if set(t.outputs) & pre and t.id != transition}
+    pos, neg, pe, ne, sw, swe = [], [], [], [], [], []
+    w, m = int(round(window / episodes[0].dt)) if episodes else 0, int(round(margin / episodes[0].dt)) if episodes else 0
+    for k, ep in enumerate(episodes):
+        V = value_matrix(apn, ep, names)
+        ok = success_mask(ep)
+        starts = [s for s, e, tag in ep.segments() if tag == transition and ok[s]]
+        near = np.zeros(ep.num_samples, dtype=bool)
+        for s in starts:
+            pos.append(V[s:s + w + 1])
+            pe.append(np.full(len(V[s:s + w + 1]), k))
+            sw.append(V[s])
+            swe.append(k)
+            near[max(0, s - m):s + m] = True
+        cand = np.isin(ep.transitions, list(before)) & ~near
+        if cand.any():
+            neg.append(V[cand])
+            ne.append(np.full(int(cand.sum()), k))
+    d = len(names)
+    cat = lambda a, shape: np.concatenate(a) if a else np.zeros(shape)  # noqa: E731
+    return SwitchData(cat(pos, (0, d)), cat(neg, (0, d)), cat(pe, (0,)).astype(int), cat(ne, (0,)).astype(int),
+                      np.array(sw).reshape(-1, d), np.array(swe, dtype=int))
+
+
+def place_samples(apn: APN, episodes: Sequence[Episode], names: Sequence[str], success_only: bool = True
+                  ) -> dict[str, np.ndarray]:
+    """Per place, the states seen while the mentor's token was there."""
+    out: dict[str, list[np.ndarray]] = {}
+    for ep in episodes:
+        V = value_matrix(apn, ep, names)
+        ok = success_mask(ep) if success_only else np.ones(ep.num_samples, dtype=bool)
+        for s, e, tag in ep.segments():
+            p = token_place(apn, tag)
+            if p is None or apn.place(p).final:
+                continue
+            rows = V[s:e][ok[s:e]]
+            if len(rows):
+                out.setdefault(p, []).append(rows)
+    return {p: np.concatenate(v) for p, v in out.items()}
