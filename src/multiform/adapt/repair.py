@@ -1,0 +1,193 @@
+"""The repair operators, tried in the paper's order on a diagnosis of constant failure.
+
+1. **Λ adjustment** — a transition chosen by λ over siblings at a choice point in failed trials gets
+   its λ halved; its siblings share the rest (only where λ had a real choice: otherwise Λ cannot help).
+2. **Condition relearning** — a transition that never fired because its condition never held while
+   it was enabled, and that is the only way from its place to where it leads (so Λ cannot help),
+   gets a condition learned from the demonstrations (the mentor's switching states).
+3. **Transition back** — when the state left its place and matches another place's region, and no
+   transition goes there, a transition to that place is added, run by that place's law, firing when
+   the state belongs to that place rather than its own (the paper's t7).
+4. **New place** — when the state matches no place, a place is added for it, reached by a new
+   transition, with a way back to the nearest place.
+
+Each operator returns revisions built by :mod:`multiform.petri.revision`; learned models it needs
+are produced and saved through a :class:`Learners` before the revision is recorded.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from ..petri.net import APN
+from ..petri.revision import Revision, add_place, add_transition, set_condition, set_lambda
+from .diagnosis import Diagnosis
+
+
+class Learners(Protocol):
+    """Where repairs get learned conditions; each call fits, saves and returns the model's name."""
+
+    def switch_condition(self, apn: APN, transition: str) -> tuple[str, dict[str, Any]]:
+        """Learn when the mentor switched into ``transition``; returns (model name, evidence)."""
+
+    def region_condition(self, apn: APN, into: str, away_from: str) -> tuple[str, dict[str, Any]]:
+        """A condition true when the state belongs to place ``into`` rather than ``away_from``."""
+
+    def outside_condition(self, apn: APN, place: str, states: list[list[float]]) -> tuple[str, dict[str, Any]]:
+        """A condition true when the state is outside every place's region (states: examples seen)."""
+
+    def has_switches(self, apn: APN, transition: str) -> bool:
+        """Whether the demonstrations show the mentor switching into ``transition``."""
+
+
+@dataclass
+class Repair:
+    """One repair step: the new net, its revisions, and a short account."""
+
+    apn: APN
+    revisions: list[Revision] = field(default_factory=list)
+    summary: str = ""
+
+
+def _only_way(apn: APN, tid: str) -> bool:
+    """No other transition leads from ``tid``'s input places to its output places."""
+    t = apn.transition(tid)
+    return not any(o.id != tid and o.preset == t.preset and set(o.outputs) == set(t.outputs)
+                   for o in apn.transitions)
+
+
+def _leads_to_success(apn: APN, tid: str) -> bool:
+    """Structurally, a success place is reachable from ``tid``'s outputs."""
+    reach = set(apn.transition(tid).outputs)
+    changed = True
+    while changed:
+        changed = False
+        for t in apn.transitions:
+            if t.inputs and set(t.inputs) <= reach and not set(t.outputs) <= reach:
+                reach |= set(t.outputs)
+                changed = True
+    return any(apn.place(p).final == "success" for p in reach)
+
+
+def place_law(apn: APN, place: str) -> str | None:
+    """The law that runs while ``place`` holds the token: the commonest law of transitions into it."""
+    laws = Counter(t.law for t in apn.transitions if place in t.outputs and t.law and place not in t.inputs)
+    if not laws:
+        laws = Counter(t.law for t in apn.transitions if place in t.outputs and t.law)
+    return laws.most_common(1)[0][0] if laws else None
+
+
+def adjust_lambda(apn: APN, d: Diagnosis, factor: float = 0.5, exhausted: frozenset[str] = frozenset()
+                  ) -> Repair | None:
+    """Operator 1. ``exhausted``: transitions whose λ was already lowered without curing the failures
+    (the practice loop tracks them); Λ is not tried on them again until the net's structure changes."""
+    for tid, n in d.risky_choices.most_common():
+        if tid not in apn.transition_ids or not apn.siblings(tid) or tid in exhausted:
+            continue
+        old = apn.transition(tid).lam
+        new, rev = set_lambda(apn, tid, old * factor,
+                              f"chosen over {', '.join(sorted(d.safer_siblings.get(tid, {})))} in {n} failed "
+                              f"choice(s); λ lowered, siblings raised",
+                              {"failed_choices": n, "alternatives": dict(d.safer_siblings.get(tid, {})),
+                               "failures": d.failures, "trials": d.trials})
+        return Repair(new, [rev], f"λ({tid}) {old:.3g} → {old * factor:.3g}")
+    return None
+
+
+def relearn_condition(apn: APN, d: Diagnosis, learners: Learners) -> Repair | None:
+    """Operator 2."""
+    for tid in d.never_held:
+        if tid not in d.never_fired:
+            continue
+        t = apn.transition(tid)
+        if not _leads_to_success(apn, tid) or not _only_way(apn, tid):
+            continue
+        if not learners.has_switches(apn, tid):
+            continue
+        name, evidence = learners.switch_condition(apn, tid)
+        reason = (f"{tid} never fired: its condition '{t.condition}' never held while it was enabled in "
+                  f"{d.failures} failed trials; it is the only way from {', '.join(t.inputs)} to "
+                  f"{', '.join(t.outputs)}, so λ cannot help; condition relearned from the mentor's switches")
+        ev = {"never_fired": d.never_fired, "never_visited": d.never_visited, "failures": d.failures, **evidence}
+        new, rev = set_condition(apn, tid, {"model": name}, reason, ev)
+        return Repair(new, [rev], f"C({tid}) ← learned {name}")
+    return None
+
+
+def add_transition_back(apn: APN, d: Diagnosis, learners: Learners, min_exits: int = 1) -> Repair | None:
+    """Operator 3."""
+    pairs = Counter((e.place, e.best) for e in d.exits if e.best is not None)
+    for (src, dst), n in pairs.most_common():
+        if n < min_exits:
+            break
+        if any(set(t.inputs) == {src} and dst in t.outputs for t in apn.transitions):
+            continue
+        law = place_law(apn, dst)
+        name, evidence = learners.region_condition(apn, dst, src)
+        tid = apn.fresh_id("t")
+        exits = [e for e in d.exits if (e.place, e.best) == (src, dst)]
+        reason = (f"in {n} failed trial(s) the state left {src} and then matched the region of {dst} "
+                  f"(score {exits[0].scores.get(dst, 0):.2f} vs {exits[0].scores.get(src, 0):.2f}); no transition "
+                  f"led back, so {tid} goes from {src} to {dst} with {dst}'s law {law}")
+        ev = {"exits": n, "example_state": exits[0].state, "scores": exits[0].scores,
+              "into_failure": dict(d.into_failure), **evidence}
+        spec = {"label": f"back to {apn.place(dst).label or dst}", "in": [src], "out": [dst],
+                "lambda": 1.0, "condition": {"model": name}}
+        if law:
+            spec["law"] = law
+        new, rev = add_transition(apn, tid, spec, reason, ev)
+        return Repair(new, [rev], f"added {tid}: {src} → {dst}")
+    return None
+
+
+def add_new_place(apn: APN, d: Diagnosis, learners: Learners) -> Repair | None:
+    """Operator 4."""
+    lost = [e for e in d.exits if e.best is None]
+    if not lost:
+        return None
+    by_place = Counter(e.place for e in lost)
+    src, n = by_place.most_common(1)[0]
+    examples = [e for e in lost if e.place == src]
+    nearest = Counter(max((p for p in e.scores if p != src), key=lambda p: e.scores[p], default=None)
+                      for e in examples).most_common(1)[0][0]
+    pid = apn.fresh_id("P")
+    label = f"outside the known places (from {src})"
+    new, r1 = add_place(apn, pid, {"label": label}, f"in {n} failed trial(s) the state left {src} into a region "
+                        "no place relates to", {"exits": n, "example_state": examples[0].state,
+                                                "scores": examples[0].scores})
+    name_out, ev_out = learners.outside_condition(new, src, [e.state for e in examples])
+    t_in = new.fresh_id("t")
+    spec_in = {"label": f"leave {src}", "in": [src], "out": [pid], "condition": {"model": name_out}}
+    law = place_law(new, nearest) if nearest else None
+    if law:
+        spec_in["law"] = law
+    new, r2 = add_transition(new, t_in, spec_in, f"reach the new place {pid} when the state leaves every region", ev_out)
+    revs = [r1, r2]
+    if nearest:
+        name_back, ev_back = learners.region_condition(new, nearest, pid)
+        t_back = new.fresh_id("t")
+        spec_back = {"label": f"recover to {nearest}", "in": [pid], "out": [nearest], "condition": {"model": name_back}}
+        if law:
+            spec_back["law"] = law
+        new, r3 = add_transition(new, t_back, spec_back, f"recover from {pid} once the state is back in {nearest}'s region",
+                                 ev_back)
+        revs.append(r3)
+    return Repair(new, revs, f"added place {pid} with {', '.join(r.target for r in revs[1:])}")
+
+
+def repair(apn: APN, d: Diagnosis, learners: Learners, exhausted: frozenset[str] = frozenset()) -> Repair | None:
+    """Try the operators in order; the first that applies makes the repair. None if none applies."""
+    for op in (lambda: adjust_lambda(apn, d, exhausted=exhausted), lambda: relearn_condition(apn, d, learners),
+               lambda: add_transition_back(apn, d, learners), lambda: add_new_place(apn, d, learners)):
+        r = op()
+        if r is not None:
+            return r
+    return None
+
+
+def describe(revs: Sequence[Revision]) -> list[dict[str, Any]]:
+    """Revisions as the run's metrics list them: operator, target, reason."""
+    return [{"version": r.version, "operator": r.operator, "target": r.target, "reason": r.reason} for r in revs]
