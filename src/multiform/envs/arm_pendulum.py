@@ -1,0 +1,308 @@
+"""``multiform/ArmPendulum-v0``: a 6-axis arm (AUBO i5 kinematics) swings up and balances a pendulum.
+
+The model (``assets/arm_pendulum.xml``) is the arm on a pedestal with an unactuated pendulum on a
+hinge at its flange. In the home posture the flange sits at the workspace centre (0, -0.55, 0.3) m
+in front of the robot with the world's orientation; the hinge axis is world y, so moving the
+end-effector along world x (the swing axis) swings the pendulum in the x-z plane — the cart-pole
+analogue. One step is one 1 ms physics step (``dt = 0.001``, implicit-fast integrator).
+
+Actions (``action_mode``):
+
+* ``"ee"`` (default): ``[v_cmd]``, the desired end-effector velocity along the swing axis [m/s],
+  clipped to ±1.5. The reference controller (:mod:`multiform.envs.osc`) turns it into joint
+  torques: a 30 rad/s velocity servo with a soft wall at |x| = 0.35 m, holds of y, z and the
+  orientation, computed-torque inverse dynamics, torque saturation.
+* ``"torque"``: six joint torques [N m], clipped to ±150 (joints 1-3) and ±30 (joints 4-6).
+
+Observations (``observation_names``, float64, the robot's own sensors: joint encoders and the
+pendulum's hinge encoder, with forward kinematics):
+
+==================  ===========================================================================
+theta               pendulum angle in the swing plane [rad]; 0 upright, positive with the tip
+                    towards +x, wrapped to (-pi, pi] (hanging = ±pi)
+omega               its angular velocity [rad/s]
+x, xdot             end-effector displacement along the swing axis from the workspace centre [m],
+                    and its velocity [m/s]
+ee_x, ee_y, ee_z    flange position in the world [m]
+ee_vx, ee_vy, ee_vz flange linear velocity [m/s]
+ee_rx, ee_ry, ee_rz flange orientation error from the home orientation, as a rotation vector [rad]
+ee_wx, ee_wy, ee_wz flange angular velocity [rad/s]
+q1..q6, qd1..qd6    joint positions [rad] and velocities [rad/s]
+==================  ===========================================================================
+
+``command_names`` is ``("v_cmd",)``.
+
+Reset options (all optional):
+
+* ``length`` [m, default 0.4] hinge-to-tip length, ``mass`` [kg, default 0.1] (rod 40 %, tip 60 %),
+  ``damping`` [N m s/rad, default 2e-4] hinge friction. Inertia and centre of mass are recomputed.
+* ``randomize`` (bool, default False): scale length and mass not given explicitly by U(0.8, 1.2).
+* ``theta0`` [rad], ``omega0`` [rad/s]: initial pendulum state; default hanging,
+  ``pi + U(-0.1, 0.1)`` and ``U(-0.1, 0.1)``.
+* ``disturbances``: list of ``{"time": s, "duration": s, "torque": N m}`` torque pulses on the
+  pendulum about the hinge axis (an external push: applied to the pendulum body, reacted by the
+  world). :meth:`ArmPendulumEnv.push` injects one now.
+
+The arm always starts at rest in the home posture. The episode's pendulum parameters are in
+``env.params`` (the mentor must not read them; a person does not know them either).
+
+Termination: a non-finite or exploding simulation ends the episode with ``terminated=True`` and
+``info["diverged"] = True``; the flange leaving the workspace far beyond the servo's soft wall
+(|x| > 0.6 m, y or z more than 0.25 m from the centre, or tilted more than 1 rad) ends it with
+``info["out_of_workspace"] = True``. There is no time limit (wrap with ``TimeLimit``); the reward is
+0, the skill's judges grade trials. ``info["disturbance"]`` is the torque applied in the last step.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from importlib import resources
+from typing import Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+from .osc import (OBSERVATION_NAMES, TORQUE_LIMITS, V_MAX, WORKSPACE_CENTRE, X_LIMIT, DEFAULT_GAINS, Gains,
+                  Workspace, task_acceleration, torques_for)
+
+COMMAND_NAMES = ("v_cmd",)
+NOMINAL = {"length": 0.4, "mass": 0.1, "damping": 2e-4}
+ROD_FRACTION = 0.4          # share of the pendulum's mass in the rod; the rest is the tip ball
+TIP_RADIUS = 0.0125
+ROD_RADIUS = 0.005
+ROD_OFFSET = -0.016         # the rod lies this far from the hinge along the pendulum frame's y (world y) [m]
+TERMINATE_X = 0.6
+TERMINATE_YZ = 0.25
+TERMINATE_TILT = 1.0
+_OBJ_SITE = int(mujoco.mjtObj.mjOBJ_SITE)
+_OPTIONS = ("length", "mass", "damping", "randomize", "theta0", "omega0", "disturbances")
+
+
+def model_path() -> str:
+    """Path of the bundled MJCF model."""
+    return str(resources.files("multiform") / "envs" / "assets" / "arm_pendulum.xml")
+
+
+def load_model() -> mujoco.MjModel:
+    """A fresh copy of the arm-pendulum model."""
+    return mujoco.MjModel.from_xml_path(model_path())
+
+
+def pendulum_inertia(length: float, mass: float) -> tuple[float, float, float]:
+    """Centre-of-mass distance from the hinge, transverse and axial inertia about the COM."""
+    mr, mt = ROD_FRACTION * mass, (1.0 - ROD_FRACTION) * mass
+    lc = (mr * length / 2 + mt * length) / mass
+    transverse = mr * (length ** 2 / 12 + (length / 2 - lc) ** 2) + mt * ((length - lc) ** 2 + 0.4 * TIP_RADIUS ** 2)
+    axial = mr * 0.5 * ROD_RADIUS ** 2 + 0.4 * mt * TIP_RADIUS ** 2
+    return lc, transverse, axial
+
+
+def equivalent_length(length: float, mass: float = 1.0) -> float:
+    """Length of the simple pendulum with the same dynamics, ``J_hinge / (m l_c)`` [m]."""
+    lc, it, _ = pendulum_inertia(length, mass)
+    return (it + mass * lc * lc) / (mass * lc)
+
+
+class ArmPendulumEnv(gym.Env):
+    """A 6-axis arm carrying a pendulum on its flange (see the module docstring).
+
+    ``action_mode`` is ``"ee"`` or ``"torque"``; ``gains`` the reference controller's
+    (:class:`multiform.envs.osc.Gains`); ``width``/``height``/``camera`` the ``rgb_array`` frames
+    (cameras ``"front"`` and ``"side"``).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
+    observation_names = OBSERVATION_NAMES
+    command_names = COMMAND_NAMES
+
+    def __init__(self, render_mode: str | None = None, action_mode: str = "ee", gains: Gains | None = None,
+                 width: int = 480, height: int = 360, camera: str = "front"):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None")
+        if action_mode not in ("ee", "torque"):
+            raise ValueError(f"action_mode must be 'ee' or 'torque', not {action_mode!r}")
+        self.render_mode = render_mode
+        self.action_mode = action_mode
+        self.gains = gains if gains is not None else DEFAULT_GAINS
+        self.width, self.height, self.camera = int(width), int(height), camera
+        self.model = load_model()
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        self.dt = float(m.opt.timestep)
+        self.workspace_centre = tuple(self.gains.centre)
+        self.x_limit = float(self.gains.x_limit)
+        self.torque_limits = TORQUE_LIMITS
+        if action_mode == "ee":
+            v = self.gains.v_max
+            self.action_space = gym.spaces.Box(-v, v, (1,), dtype=np.float64)
+        else:
+            self.action_space = gym.spaces.Box(-self.torque_limits, self.torque_limits, dtype=np.float64)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (len(OBSERVATION_NAMES),), dtype=np.float64)
+        key = m.key("home").id
+        self.home_qpos = m.key_qpos[key].copy()
+        self._site = m.site("flange").id
+        self._pend = m.body("pendulum").id
+        self._hinge_q = int(m.joint("pendulum").qposadr[0])
+        self._hinge_v = int(m.joint("pendulum").dofadr[0])
+        self._rod = m.geom("rod").id
+        self._tip = m.geom("tip").id
+        d = self.data
+        self._work = Workspace(m, d)
+        self._vel6 = np.zeros(6)
+        self._vel6_list = [0.0] * 6
+        self._pxmat = d.xmat[self._pend]
+        self._pcvel = d.cvel[self._pend]
+        self._spos = d.site_xpos[self._site]
+        self._smat = d.site_xmat[self._site]
+        self._qpos6 = d.qpos[:6]
+        self._qvel6 = d.qvel[:6]
+        self._ctrl = d.ctrl
+        self._xfrc = d.xfrc_applied[self._pend]
+        self._quat = np.zeros(4)
+        self._rv = np.zeros(3)
+        self._obs_list: list[float] = [0.0] * len(OBSERVATION_NAMES)
+        self._pulses: list[tuple[float, float, float]] = []
+        self._applied = 0.0
+        self.params: dict[str, float] = dict(NOMINAL)
+        self._renderer: mujoco.Renderer | None = None
+        self.last_torques = np.zeros(6)
+
+    # ------------------------------------------------------------------ reset
+    def reset(self, *, seed: int | None = None, options: Mapping[str, Any] | None = None):
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = sorted(set(options) - set(_OPTIONS))
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {unknown}; known: {list(_OPTIONS)}")
+        rng = self.np_random
+        randomize = bool(options.get("randomize", False))
+        p = {}
+        for k in ("length", "mass"):
+            if options.get(k) is not None:
+                p[k] = float(options[k])
+            else:
+                p[k] = NOMINAL[k] * (float(rng.uniform(0.8, 1.2)) if randomize else 1.0)
+        p["damping"] = float(options["damping"]) if options.get("damping") is not None else NOMINAL["damping"]
+        if not (p["length"] > 0.05 and p["mass"] > 0.0 and p["damping"] >= 0.0):
+            raise ValueError(f"pendulum parameters out of range: {p}")
+        theta0 = options.get("theta0")
+        theta0 = float(theta0) if theta0 is not None else math.pi + float(rng.uniform(-0.1, 0.1))
+        omega0 = options.get("omega0")
+        omega0 = float(omega0) if omega0 is not None else float(rng.uniform(-0.1, 0.1))
+        self._pulses = self._parse_pulses(options.get("disturbances") or [])
+        self.params = p
+        self._apply_params(p)
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        d.qpos[:] = self.home_qpos
+        d.qpos[self._hinge_q] = theta0
+        d.qvel[self._hinge_v] = omega0
+        mujoco.mj_forward(m, d)
+        self._applied = 0.0
+        self.last_torques = np.zeros(6)
+        obs = self._observe()
+        return obs, {"diverged": False, "out_of_workspace": False, "disturbance": 0.0}
+
+    @staticmethod
+    def _parse_pulses(items: Sequence[Mapping[str, Any]]) -> list[tuple[float, float, float]]:
+        pulses = []
+        for i, it in enumerate(items):
+            try:
+                t, dur, tau = float(it["time"]), float(it["duration"]), float(it["torque"])
+            except (KeyError, TypeError, ValueError):
+                raise ValueError(f"disturbances[{i}] must be a mapping with numeric time, duration and "
+                                 f"torque, got {it!r}") from None
+            if not (math.isfinite(t) and math.isfinite(dur) and math.isfinite(tau)) or dur < 0 or t < 0:
+                raise ValueError(f"disturbances[{i}]: time and duration must be finite and >= 0, got {it!r}")
+            pulses.append((t, t + dur, tau))
+        return sorted(pulses)
+
+    def _apply_params(self, p: Mapping[str, float]) -> None:
+        m = self.model
+        length, mass = p["length"], p["mass"]
+        lc, it, ia = pendulum_inertia(length, mass)
+        b = self._pend
+        m.body_mass[b] = mass
+        m.body_ipos[b] = (0.0, ROD_OFFSET, lc)
+        m.body_inertia[b] = (it, it, ia)
+        m.geom_size[self._rod, 1] = length / 2
+        m.geom_pos[self._rod] = (0.0, ROD_OFFSET, length / 2)
+        m.geom_pos[self._tip] = (0.0, ROD_OFFSET, length)
+        m.dof_damping[self._hinge_v] = p["damping"]
+        mujoco.mj_setConst(m, self.data)
+
+    def push(self, torque: float, duration: float) -> None:
+        """Apply a torque pulse [N m] about the hinge axis on the pendulum from now for ``duration`` s."""
+        t = float(self.data.time)
+        self._pulses.append((t, t + float(duration), float(torque)))
+        self._pulses.sort()
+
+    # ------------------------------------------------------------------- step
+    def step(self, action):
+        m, d = self.model, self.data
+        if self.action_mode == "ee":
+            a6 = task_acceleration(self._obs_list, float(action[0]), self.gains)
+            tau = torques_for(a6, m, d, self.torque_limits, self._work)
+        else:
+            tau = np.clip(np.asarray(action, dtype=np.float64), -self.torque_limits, self.torque_limits)
+        self._ctrl[:] = tau
+        self.last_torques = tau
+        t = d.time
+        if self._pulses:
+            self._disturb(t)
+        mujoco.mj_step2(m, d)
+        mujoco.mj_step1(m, d)
+        diverged = d.time < t + 0.5 * self.dt     # MuJoCo resets the state (time 0) on bad values
+        if not diverged:
+            obs = self._observe()
+            o = self._obs_list
+            diverged = not math.isfinite(sum(o)) or abs(o[1]) > 1e3
+        if diverged:
+            obs = np.zeros(len(OBSERVATION_NAMES))
+            return obs, 0.0, True, False, {"diverged": True, "out_of_workspace": False,
+                                           "disturbance": self._applied}
+        c = self.workspace_centre
+        out = (abs(o[2]) > TERMINATE_X or abs(o[5] - c[1]) > TERMINATE_YZ or abs(o[6] - c[2]) > TERMINATE_YZ
+               or o[10] * o[10] + o[11] * o[11] + o[12] * o[12] > TERMINATE_TILT ** 2)
+        return obs, 0.0, out, False, {"diverged": False, "out_of_workspace": out, "disturbance": self._applied}
+
+    def _disturb(self, t: float) -> None:
+        tau = 0.0
+        for start, end, torque in self._pulses:
+            if start > t:
+                break
+            if t < end:
+                tau += torque
+        self._applied = tau
+        self._xfrc[4] = tau
+
+    def _observe(self) -> np.ndarray:
+        xm = self._pxmat
+        theta = math.atan2(xm[2], xm[8])
+        if theta == -math.pi:
+            theta = math.pi
+        mujoco.mj_objectVelocity(self.model, self.data, _OBJ_SITE, self._site, self._vel6, 0)
+        mujoco.mju_mat2Quat(self._quat, self._smat)
+        mujoco.mju_quat2Vel(self._rv, self._quat, 1.0)
+        px, py, pz = self._spos.tolist()
+        wx, wy, wz, vx, vy, vz = self._vel6.tolist()
+        o = [theta, float(self._pcvel[1]), px - self.workspace_centre[0], vx, px, py, pz, vx, vy, vz,
+             *self._rv.tolist(), wx, wy, wz, *self._qpos6.tolist(), *self._qvel6.tolist()]
+        self._obs_list = o
+        return np.array(o)
+
+    # ----------------------------------------------------------------- render
+    def render(self):
+        if self.render_mode != "rgb_array":
+            return None
+        if self._renderer is None:
+            self._renderer = mujoco.Renderer(self.model, self.height, self.width)
+        self._renderer.update_scene(self.data, camera=self.camera)
+        return self._renderer.render().copy()
+
+    def close(self):
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
