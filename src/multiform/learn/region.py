@@ -1,0 +1,352 @@
+"""Place regions: where in state space each place's token has been, and whether a new state belongs.
+
+Model: per place, a Gaussian mixture (full covariances, 1..``max_components`` chosen by BIC) of the
+states seen while its token was there, in one standardisation shared by all places so densities
+are comparable. Why a mixture rather than a OneClassSVM or one Gaussian: a place's states are not
+one blob (the swing-up's states trace a spiral out from hanging to upright), a mixture follows that;
+and its log-density keeps falling quadratically away from the data, so "which place is this
+disturbed state closest to" still has an answer just outside every seen region, where an RBF
+one-class SVM's decision flattens to the same constant for all places. It is also cheap to
+evaluate at the control rate (a few µs per place, numpy only).
+
+Calibration: each place's mixture is fitted on half its samples and calibrated on the other half.
+With ℓ the log-density, τ its ``1 - coverage`` quantile and m its median on the held-out half::
+
+    score(x) = 1 / (1 + exp(-ln 9 · (ℓ(x) - τ) / (m - τ)))
+
+so a score of 0.5 is the region's boundary (``coverage`` of the place's own unseen states score
+≥ 0.5), a typical state of the place scores 0.9, and a state far from it tends to 0. A state
+belongs to the best-scoring place if that score is ≥ ``threshold_`` (0.5); otherwise no place
+relates to it.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+from scipy.special import logsumexp
+from sklearn.base import BaseEstimator
+from sklearn.mixture import GaussianMixture
+
+from ..errors import InvalidInput
+from ..io import load_npz, save_npz
+from .features import as_str_list, check_names
+
+KIND = "place_regions"
+COND_KIND = "region_condition"
+VERSION = 1
+LN9 = float(np.log(9.0))
+
+
+class _PlaceDensity:
+    """One place's mixture in standardised coordinates, with its calibration, as plain arrays."""
+
+    def __init__(self, weights: np.ndarray, means: np.ndarray, prec_chol: np.ndarray, tau: float, median: float):
+        self.weights = np.asarray(weights, dtype=np.float64)
+        self.means = np.asarray(means, dtype=np.float64)
+        self.prec_chol = np.asarray(prec_chol, dtype=np.float64)
+        self.tau, self.median = float(tau), float(median)
+        k, d = self.means.shape
+        self._W = np.ascontiguousarray(self.prec_chol.transpose(1, 0, 2).reshape(d, k * d))
+        self._c = np.einsum("kd,kde->ke", self.means, self.prec_chol).reshape(-1)
+        logdet = np.log(np.abs(np.einsum("kii->ki", self.prec_chol))).sum(1)
+        self._const = np.log(self.weights) + logdet - 0.5 * d * np.log(2 * np.pi)
+        self._k, self._d = k, d
+        self._slope = LN9 / max(self.median - self.tau, 1e-9)
+
+    def log_density(self, U: np.ndarray) -> np.ndarray:
+        """ℓ for rows of standardised ``U`` (n, d)."""
+        Y = (U @ self._W - self._c).reshape(len(U), self._k, self._d)
+        return logsumexp(self._const - 0.5 * np.einsum("nkd,nkd->nk", Y, Y), axis=1)
+
+    def log_density_one(self, u: np.ndarray) -> float:
+        y = u @ self._W
+        y -= self._c
+        y *= y
+        a = self._const - 0.5 * y.reshape(self._k, self._d).sum(1)
+        m = a.max()
+        return float(m + np.log(np.exp(a - m).sum()))
+
+    def score(self, ell: np.ndarray | float) -> np.ndarray | float:
+        z = np.clip(-self._slope * (np.asarray(ell) - self.tau), -700, 700)
+        out = 1.0 / (1.0 + np.exp(z))
+        return float(out) if np.ndim(out) == 0 else out
+
+    def to_arrays(self, prefix: str) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        return ({f"{prefix}weights": self.weights, f"{prefix}means": self.means, f"{prefix}prec_chol": self.prec_chol},
+                {"tau": self.tau, "median": self.median, "components": int(self._k)})
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], meta: Mapping[str, Any], d: int, file: str,
+                    prefix: str) -> _PlaceDensity:
+        for k in ("weights", "means", "prec_chol"):
+            if prefix + k not in arrays:
+                raise InvalidInput("array is missing", file=file, element=prefix + k)
+            a = arrays[prefix + k]
+            if a.dtype.kind != "f" or not np.all(np.isfinite(a)):
+                raise InvalidInput("must hold finite floats", file=file, element=prefix + k)
+        w, mu, pc = arrays[prefix + "weights"], arrays[prefix + "means"], arrays[prefix + "prec_chol"]
+        k = w.shape[0] if w.ndim == 1 else -1
+        if k < 1 or np.any(w <= 0):
+            raise InvalidInput(f"has shape {w.shape} or non-positive weights", file=file, element=prefix + "weights")
+        if mu.shape != (k, d):
+            raise InvalidInput(f"has shape {mu.shape}, expected ({k}, {d})", file=file, element=prefix + "means")
+        if pc.shape != (k, d, d) or np.any(np.einsum("kii->ki", pc) == 0):
+            raise InvalidInput(f"has shape {pc.shape} or a singular factor, expected ({k}, {d}, {d})", file=file,
+                               element=prefix + "prec_chol")
+        try:
+            tau, med = float(meta["tau"]), float(meta["median"])
+        except (KeyError, TypeError, ValueError):
+            raise InvalidInput("calibration (tau, median) missing", file=file, element=prefix + "meta") from None
+        if not (np.isfinite(tau) and np.isfinite(med)):
+            raise InvalidInput("calibration is not finite", file=file, element=prefix + "meta")
+        return cls(w, mu, pc, tau, med)
+
+
+class PlaceRegions(BaseEstimator):
+    """Per-place state-space regions over ``input_names``; see the module docstring.
+
+    After :meth:`fit`: ``places_``, ``mean_`` / ``scale_`` (shared standardisation),
+    ``components_`` (mixture size per place), ``n_samples_`` per place, ``threshold_`` (0.5).
+    """
+
+    threshold_ = 0.5
+
+    def __init__(self, input_names: Sequence[str] = (), max_components: int = 6, coverage: float = 0.98,
+                 reg_covar: float = 1e-3, max_samples: int = 4000, random_state: int = 0):
+        self.input_names = input_names
+        self.max_components = max_components
+        self.coverage = coverage
+        self.reg_covar = reg_covar
+        self.max_samples = max_samples
+        self.random_state = random_state
+
+    def fit(self, samples: Mapping[str, np.ndarray]) -> PlaceRegions:
+        """``samples``: place → (n, d) states seen while its token was there (e.g. ``views.place_samples``)."""
+        if not samples:
+            raise ValueError("no places to model")
+        if not 0 < self.coverage < 1:
+            raise ValueError("coverage must be in (0, 1)")
+        rng = np.random.default_rng(self.random_state)
+        data = {}
+        for p, X in samples.items():
+            X = np.asarray(X, dtype=np.float64)
+            if X.ndim != 2 or (self.input_names and X.shape[1] != len(self.input_names)):
+                raise ValueError(f"place {p}: expected (n, {len(self.input_names) or 'd'}) states, got {X.shape}")
+            if not np.all(np.isfinite(X)):
+                raise ValueError(f"place {p}: non-finite states")
+            if len(X) < 10:
+                raise ValueError(f"place {p}: {len(X)} states are too few for a region (need 10)")
+            if len(X) > self.max_samples:
+                X = X[rng.choice(len(X), self.max_samples, replace=False)]
+            data[p] = X
+        allX = np.concatenate(list(data.values()))
+        self.mean_ = allX.mean(0)
+        self.scale_ = allX.std(0)
+        self.scale_[self.scale_ == 0] = 1.0
+        self.places_ = tuple(data)
+        self.densities_: dict[str, _PlaceDensity] = {}
+        self.components_, self.n_samples_ = {}, {}
+        for p, X in data.items():
+            U = (X - self.mean_) / self.scale_
+            perm = rng.permutation(len(U))
+            half = len(U) // 2
+            fit_u, cal_u = U[perm[:half]], U[perm[half:]]
+            gm = self._mixture(fit_u)
+            dens = _PlaceDensity(gm.weights_, gm.means_, gm.precisions_cholesky_, 0.0, 1.0)
+            ell = dens.log_density(cal_u)
+            dens = _PlaceDensity(gm.weights_, gm.means_, gm.precisions_cholesky_,
+                                 float(np.quantile(ell, 1 - self.coverage)), float(np.median(ell)))
+            self.densities_[p] = dens
+            self.components_[p] = int(gm.n_components)
+            self.n_samples_[p] = len(X)
+        self._prepare()
+        return self
+
+    def _mixture(self, U: np.ndarray) -> GaussianMixture:
+        best, best_bic = None, np.inf
+        for k in range(1, max(1, min(self.max_components, len(U) // 10)) + 1):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                gm = GaussianMixture(k, covariance_type="full", reg_covar=self.reg_covar,
+                                     random_state=self.random_state).fit(U)
+            bic = gm.bic(U)
+            if bic < best_bic:
+                best, best_bic = gm, bic
+        assert best is not None
+        return best
+
+    def _prepare(self) -> None:
+        self._inv_scale = 1.0 / self.scale_
+        self.n_features_in_ = len(self.mean_)
+
+    # -- scoring ------------------------------------------------------------------------------------
+    def scores(self, X: np.ndarray) -> dict[str, np.ndarray]:
+        """Score in [0, 1] of every place for every row of ``X`` (n, d) — a diagnosis ``RegionScorer``."""
+        U = (np.atleast_2d(np.asarray(X, dtype=np.float64)) - self.mean_) * self._inv_scale
+        return {p: np.asarray(d.score(d.log_density(U))).reshape(-1) for p, d in self.densities_.items()}
+
+    def score_one(self, x: np.ndarray, place: str) -> float:
+        """One place's score for one state (the control-rate path)."""
+        d = self.densities_[place]
+        return d.score(d.log_density_one((x - self.mean_) * self._inv_scale))
+
+    def log_density(self, X: np.ndarray) -> dict[str, np.ndarray]:
+        U = (np.atleast_2d(np.asarray(X, dtype=np.float64)) - self.mean_) * self._inv_scale
+        return {p: d.log_density(U) for p, d in self.densities_.items()}
+
+    def best(self, X: np.ndarray) -> list[str | None]:
+        """Per row, the best-matching place, or None when no place's score reaches ``threshold_``."""
+        s = self.scores(X)
+        S = np.stack([s[p] for p in self.places_], axis=1)
+        k = S.argmax(1)
+        return [self.places_[i] if S[r, i] >= self.threshold_ else None for r, i in enumerate(k)]
+
+    def belongs(self, X: np.ndarray, place: str) -> np.ndarray:
+        """Per row: ``place`` scores at least ``threshold_``."""
+        return self.scores(X)[place] >= self.threshold_
+
+    def coverage_on(self, samples: Mapping[str, np.ndarray]) -> dict[str, float]:
+        """Fraction of each place's given states that score ≥ ``threshold_`` for that place."""
+        return {p: float(self.belongs(X, p).mean()) for p, X in samples.items() if p in self.densities_}
+
+    # -- conditions the repair operators add --------------------------------------------------------
+    def condition(self, into: str, rather_than: str | None = None) -> RegionCondition:
+        """True when the state belongs to ``into`` (score ≥ 0.5) and, if given, scores higher for it
+        than for ``rather_than`` (the paper's t7: back from "balanced" to "swung up")."""
+        places = [into] + ([rather_than] if rather_than else [])
+        for p in places:
+            if p not in self.densities_:
+                raise KeyError(f"no region for place {p!r} (have: {', '.join(self.places_)})")
+        return RegionCondition(self._subset(places), "into", into, rather_than)
+
+    def outside_condition(self) -> RegionCondition:
+        """True when the state belongs to no place's region."""
+        return RegionCondition(self._subset(list(self.places_)), "outside")
+
+    def _subset(self, places: Sequence[str]) -> PlaceRegions:
+        r = PlaceRegions(**self.get_params())
+        r.mean_, r.scale_, r.places_ = self.mean_, self.scale_, tuple(places)
+        r.densities_ = {p: self.densities_[p] for p in places}
+        r.components_ = {p: self.components_[p] for p in places}
+        r.n_samples_ = {p: self.n_samples_[p] for p in places}
+        r._prepare()
+        return r
+
+    # -- persistence --------------------------------------------------------------------------------
+    def to_arrays(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        arrays: dict[str, np.ndarray] = {"mean": self.mean_, "scale": self.scale_}
+        dmeta = {}
+        for i, p in enumerate(self.places_):
+            a, m = self.densities_[p].to_arrays(f"p{i}_")
+            arrays.update(a)
+            dmeta[p] = {**m, "samples": self.n_samples_[p]}
+        meta = {"input_names": list(self.input_names), "places": list(self.places_), "densities": dmeta,
+                "coverage": self.coverage, "max_components": self.max_components, "reg_covar": self.reg_covar,
+                "max_samples": self.max_samples, "random_state": self.random_state}
+        return arrays, meta
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], meta: Mapping[str, Any], file: str = "",
+                    input_names: Sequence[str] | None = None) -> PlaceRegions:
+        names = as_str_list(meta.get("input_names"), file, "input_names")
+        if input_names is not None:
+            check_names(input_names, names, file, "input_names")
+        places = as_str_list(meta.get("places"), file, "places")
+        if not places:
+            raise InvalidInput("no places", file=file, element="places")
+        d = len(names)
+        for k in ("mean", "scale"):
+            a = arrays.get(k)
+            if a is None or a.shape != (d,) or a.dtype.kind != "f" or not np.all(np.isfinite(a)):
+                raise InvalidInput(f"must be {d} finite floats (one per input name)", file=file, element=k)
+        if np.any(arrays["scale"] <= 0):
+            raise InvalidInput("must be positive", file=file, element="scale")
+        dens_meta = meta.get("densities")
+        if not isinstance(dens_meta, dict) or set(dens_meta) != set(places):
+            raise InvalidInput("must describe every place", file=file, element="densities")
+        try:
+            r = cls(input_names=tuple(names), max_components=int(meta["max_components"]),
+                    coverage=float(meta["coverage"]), reg_covar=float(meta["reg_covar"]),
+                    max_samples=int(meta["max_samples"]), random_state=int(meta["random_state"]))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InvalidInput(f"settings incomplete ({exc})", file=file, element="meta") from None
+        r.mean_, r.scale_, r.places_ = arrays["mean"].astype(np.float64), arrays["scale"].astype(np.float64), tuple(places)
+        r.densities_, r.components_, r.n_samples_ = {}, {}, {}
+        for i, p in enumerate(places):
+            r.densities_[p] = _PlaceDensity.from_arrays(arrays, dens_meta[p], d, file, f"p{i}_")
+            r.components_[p] = r.densities_[p]._k
+            r.n_samples_[p] = int(dens_meta[p].get("samples", 0))
+        r._prepare()
+        return r
+
+    def save(self, path: str | os.PathLike) -> None:
+        arrays, meta = self.to_arrays()
+        save_npz(path, arrays, meta, KIND, VERSION)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike, input_names: Sequence[str] | None = None) -> PlaceRegions:
+        arrays, meta = load_npz(path, KIND, VERSION)
+        return cls.from_arrays(arrays, meta, str(path), input_names)
+
+
+class RegionCondition:
+    """A learned condition built from place regions (what :class:`~multiform.petri.firing.NetRunner`
+    calls with one state in ``input_names`` order).
+
+    ``mode="into"``: holds when the state belongs to ``into`` and scores higher there than in
+    ``rather_than``; ``mode="outside"``: holds when no place's score reaches the threshold.
+    """
+
+    def __init__(self, regions: PlaceRegions, mode: str, into: str | None = None, rather_than: str | None = None):
+        if mode not in ("into", "outside"):
+            raise ValueError(f"mode must be 'into' or 'outside', got {mode!r}")
+        self.regions, self.mode, self.into, self.rather_than = regions, mode, into, rather_than
+        self.input_names = tuple(regions.input_names)
+        self.threshold = regions.threshold_
+        self._into = regions.densities_[into] if into else None
+        self._away = regions.densities_[rather_than] if rather_than else None
+        self._all = list(regions.densities_.values())
+
+    def __call__(self, x: np.ndarray) -> bool:
+        r = self.regions
+        u = (x - r.mean_) * r._inv_scale
+        if self.mode == "outside":
+            return all(d.score(d.log_density_one(u)) < self.threshold for d in self._all)
+        assert self._into is not None
+        s = self._into.score(self._into.log_density_one(u))
+        if s < self.threshold:
+            return False
+        return self._away is None or s > self._away.score(self._away.log_density_one(u))
+
+    def holds(self, X: np.ndarray) -> np.ndarray:
+        """Vectorised :meth:`__call__` over rows."""
+        s = self.regions.scores(X)
+        if self.mode == "outside":
+            return np.all(np.stack([v < self.threshold for v in s.values()]), axis=0)
+        ok = s[self.into] >= self.threshold
+        return ok & (s[self.into] > s[self.rather_than]) if self.rather_than else ok
+
+    def save(self, path: str | os.PathLike) -> None:
+        arrays, meta = self.regions.to_arrays()
+        meta = {**meta, "mode": self.mode, "into": self.into, "rather_than": self.rather_than}
+        save_npz(path, arrays, meta, COND_KIND, VERSION)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike, input_names: Sequence[str] | None = None) -> RegionCondition:
+        f = str(path)
+        arrays, meta = load_npz(path, COND_KIND, VERSION)
+        regions = PlaceRegions.from_arrays(arrays, meta, f, input_names)
+        mode, into, away = meta.get("mode"), meta.get("into"), meta.get("rather_than")
+        if mode not in ("into", "outside"):
+            raise InvalidInput(f"unknown mode {mode!r}", file=f, element="mode")
+        for el, p in (("into", into), ("rather_than", away)):
+            if p is not None and p not in regions.places_:
+                raise InvalidInput(f"names place {p!r}, which has no region here", file=f, element=el)
+        if mode == "into" and into is None:
+            raise InvalidInput("an 'into' condition needs its place", file=f, element="into")
+        return cls(regions, mode, into, away)
