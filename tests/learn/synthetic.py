@@ -45,28 +45,29 @@ def swing_segment(rng: np.random.Generator, end: tuple[float, float] | None = No
     return np.stack([wrap(theta), omega, x, xdot], axis=1), bool(success)
 
 
-def balance_segment(rng: np.random.Generator) -> tuple[np.ndarray, bool]:
+def balance_segment(rng: np.random.Generator, amp_range: tuple[float, float] = (0.02, 0.45),
+                    x_range: tuple[float, float] = (0.0, 0.35)) -> tuple[np.ndarray, bool]:
     """A balancing-like trajectory near upright; success iff |theta| stayed below 0.25 and the cart
-    ended within |x| < 0.2."""
+    ended within |x| < 0.2. ``x_range`` bounds |x| at the end."""
     T = int(rng.integers(200, 500))
     t = np.arange(T) * DT
-    amp = rng.uniform(0.02, 0.45)
+    amp = rng.uniform(*amp_range)
     theta = amp * np.exp(-t * rng.uniform(0, 1.0)) * np.sin(2 * np.pi * rng.uniform(0.5, 1.5) * t + rng.uniform(0, 6))
     omega = np.gradient(theta, DT)
-    x_end = rng.uniform(-0.35, 0.35)
+    x_end = rng.uniform(*x_range) * rng.choice([-1, 1])
     x = x_end * t / t[-1] + 0.02 * np.sin(3 * t)
     xdot = np.gradient(x, DT)
     success = np.abs(theta).max() < 0.25 and abs(x[-1]) < 0.2
     return np.stack([theta, omega, x, xdot], axis=1), bool(success)
 
 
-def segments(place: str, n: int, seed: int) -> tuple[list[Segment], np.ndarray]:
-    """``n`` labelled segments of ``place`` ("P1" swing-up, "P2" balance)."""
+def segments(place: str, n: int, seed: int, **kw) -> tuple[list[Segment], np.ndarray]:
+    """``n`` labelled segments of ``place`` ("P1" swing-up, "P2" balance); ``kw`` go to the maker."""
     rng = np.random.default_rng(seed)
     make = swing_segment if place == "P1" else balance_segment
     segs, y = [], []
     for i in range(n):
-        v, ok = make(rng)
+        v, ok = make(rng, **kw)
         segs.append(Segment(v, NAMES, DT, source=f"syn_{place}_{seed}_{i}", start=0, end=len(v),
                             transition="t0" if place == "P1" else "t1"))
         y.append(ok)

@@ -41,8 +41,9 @@ VERSION = 1
 class LearnedCondition(BaseEstimator):
     """A boolean condition over ``input_names`` learned from positive and negative states.
 
-    After :meth:`fit`: ``decision_`` (FastDecision), ``n_support_``, ``n_train_``,
-    ``fit_rounds_`` (training-set sizes tried to meet the support-vector cap), ``train_rates_``.
+    After :meth:`fit`: ``decision_`` (FastDecision), ``estimator_`` (the scikit-learn pipeline it was
+    compiled from; not saved), ``n_support_``, ``n_train_``, ``fit_rounds_`` ((training rows, support
+    vectors) per attempt at the cap), ``train_rates_``.
     """
 
     def __init__(self, input_names: Sequence[str] = (), C: float = 10.0, gamma: float | str = "scale",
@@ -87,6 +88,7 @@ class LearnedCondition(BaseEstimator):
         self.n_train_ = len(idx)
         self.n_support_ = n_sv
         self.n_features_in_ = X.shape[1]
+        self.estimator_ = model
         self.decision_ = FastDecision.from_sklearn(model)
         self.train_rates_ = self.rates(X, y)
         return self

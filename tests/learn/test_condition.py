@@ -1,0 +1,108 @@
+"""Learned firing conditions: hold where the mentor switched, rarely elsewhere, at numpy speed."""
+
+import numpy as np
+import pytest
+
+from multiform.errors import InvalidInput
+from multiform.learn.condition import LearnedCondition, load_condition
+from multiform.petri.firing import NetRunner
+from multiform.petri.revision import set_condition
+from multiform.petri.skillfile import load_skill
+
+from .synthetic import switch_data
+
+NAMES = ("theta", "omega")
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    train, test = switch_data(0), switch_data(1)
+    cond = LearnedCondition(NAMES).fit_switches(train.positives, train.negatives)
+    return cond, train, test
+
+
+def test_holds_near_switches_and_rarely_far(fitted):
+    cond, _, test = fitted
+    near = cond.holds(test.near).mean()           # held-out switch-like states, |theta| < 0.15
+    far = cond.holds(test.negatives).mean()       # held-out swing states far from any switch
+    print(f"\nlearned condition: holds at {near:.1%} of held-out near-upright switch states, "
+          f"{far:.2%} of held-out far swing states; {cond.n_support_} support vectors")
+    assert near >= 0.90
+    assert far <= 0.02
+    assert cond.n_support_ <= 500
+
+
+def test_decision_equals_sklearn(fitted):
+    cond, _, test = fitted
+    X = np.concatenate([test.near, test.negatives[:500], test.positives])
+    ref = cond.estimator_.decision_function(X)
+    np.testing.assert_allclose(cond.decision(X), ref, rtol=0, atol=1e-8)
+    one = np.array([cond.decision(x) for x in X[:200]])
+    np.testing.assert_allclose(one, ref[:200], rtol=0, atol=1e-8)
+    calls = np.array([cond(x) for x in X[:200]])
+    assert calls.dtype == bool and np.array_equal(calls, ref[:200] > 0)
+
+
+def test_support_vectors_capped_on_overlapping_classes():
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(3000, 2))
+    y = X[:, 0] + rng.normal(0, 1.0, 3000) > 0.5         # heavy overlap: most points become SVs
+    cond = LearnedCondition(NAMES, max_support=120).fit(X, y)
+    assert cond.n_support_ <= 120
+    assert len(cond.fit_rounds_) > 1 and cond.fit_rounds_[0][1] > 120
+    assert cond.rates(X, y)["hit"] > 0.6                    # still a useful separator
+
+
+def test_threshold_trades_false_positives_against_misses(fitted):
+    cond, _, test = fitted
+    X = np.concatenate([test.positives, test.negatives])
+    y = np.r_[np.ones(len(test.positives), bool), np.zeros(len(test.negatives), bool)]
+    rates = []
+    for thr in (-1.0, 0.0, 1.0):
+        c = LearnedCondition(**{**cond.get_params(), "threshold": thr})
+        c.decision_ = cond.decision_
+        rates.append(c.rates(X, y))
+    hits = [r["hit"] for r in rates]
+    fps = [r["false_positive"] for r in rates]
+    assert hits == sorted(hits, reverse=True) and fps == sorted(fps, reverse=True)
+    thr = cond.threshold_for(test.negatives, 0.001)
+    assert (np.asarray(cond.decision(test.negatives)) > thr).mean() <= 0.001
+
+
+def test_needs_both_kinds_of_states():
+    with pytest.raises(ValueError, match="need states"):
+        LearnedCondition(NAMES).fit(np.zeros((5, 2)), np.ones(5, bool))
+
+
+def test_save_load_and_net_wiring(tmp_path, fitted):
+    cond, _, test = fitted
+    path = tmp_path / "t1_learned.npz"
+    cond.save(path)
+    back = load_condition(path, input_names=NAMES)
+    assert isinstance(back, LearnedCondition) and back.input_names == NAMES
+    X = np.concatenate([test.near[:50], test.negatives[:50]])
+    np.testing.assert_array_equal(back.decision(X), cond.decision(X))
+
+    apn, _ = set_condition(load_skill("pendulum"), "t1", {"model": "t1_learned"}, "test")
+    runner = NetRunner(apn, ["theta", "omega", "x", "xdot"], learned={"t1_learned": back}, rng=0)
+    assert runner.tick([np.pi, 0.0, 0.0, 0.0], 0.0) == ["t0"]            # token into P1
+    assert runner.tick([1.5, 4.0, 0.0, 0.0], 0.1) == []                 # far from upright: no switch
+    assert runner.tick([0.03, 0.2, 0.0, 0.0], 0.2) == ["t1"]            # near upright: switch
+
+
+def test_corrupt_or_mismatched_condition_file(tmp_path, fitted):
+    cond, _, _ = fitted
+    path = tmp_path / "c.npz"
+    cond.save(path)
+    good = path.read_bytes()
+    with pytest.raises(InvalidInput, match="input_names") as e:
+        LearnedCondition.load(path, input_names=("theta", "omega", "x"))
+    assert "c.npz" in str(e.value)
+    path.write_bytes(good[:100])
+    with pytest.raises(InvalidInput, match="c.npz"):
+        load_condition(path)
+    assert path.read_bytes() == good[:100]
+    path.write_bytes(b"not a zip at all")
+    with pytest.raises(InvalidInput, match="c.npz"):
+        LearnedCondition.load(path)
+    assert path.read_bytes() == b"not a zip at all"

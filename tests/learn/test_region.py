@@ -1,0 +1,97 @@
+"""Place regions: calibrated membership, the best-matching place, and "no place relates"."""
+
+import numpy as np
+import pytest
+
+from multiform.errors import InvalidInput
+from multiform.io import load_npz, save_npz
+from multiform.learn.condition import load_condition
+from multiform.learn.region import KIND, VERSION, PlaceRegions, RegionCondition
+
+from .synthetic import place_states
+
+NAMES = ("theta", "omega")
+DISTURBED = np.array([0.6, 3.0])          # pushed off upright: looks like a swing, not balancing
+UPRIGHT = np.array([0.02, 0.1])
+FAR = np.array([0.0, 15.0])               # spinning faster than any demonstration
+
+
+@pytest.fixture(scope="module")
+def regions():
+    return PlaceRegions(NAMES).fit(place_states(0, n=1500))
+
+
+def test_coverage_on_held_out_states(regions):
+    cov = regions.coverage_on(place_states(1, n=1500))
+    print(f"\nheld-out coverage (target {regions.coverage:.0%}): {cov}; components {regions.components_}")
+    for p in ("P1", "P2"):
+        assert cov[p] >= 0.94
+
+
+def test_best_place_and_no_place(regions):
+    assert regions.best(np.stack([DISTURBED, UPRIGHT, FAR])) == ["P1", "P2", None]
+    s = regions.scores(DISTURBED)
+    assert s["P1"][0] >= 0.5 > s["P2"][0]
+    s = regions.scores(FAR)
+    assert max(v[0] for v in s.values()) < 0.05
+    # states of the other place mostly fall outside a place's region
+    other = place_states(2, n=1500)
+    assert regions.belongs(other["P2"], "P2").mean() > 0.9
+    assert regions.scores(other["P1"])["P2"].mean() < 0.2
+
+
+def test_fast_path_equals_vectorised(regions):
+    X = np.concatenate([place_states(3, n=200)["P1"], place_states(3, n=200)["P2"], [DISTURBED, FAR]])
+    s = regions.scores(X)
+    for p in regions.places_:
+        one = np.array([regions.score_one(x, p) for x in X])
+        np.testing.assert_allclose(one, s[p], rtol=1e-10, atol=1e-12)
+
+
+def test_conditions_for_the_repair_loop(regions, tmp_path):
+    back = regions.condition("P1", rather_than="P2")                  # the paper's t7: P2 -> P1
+    assert back(DISTURBED) and not back(UPRIGHT) and not back(FAR)
+    out = regions.outside_condition()
+    assert out(FAR) and not out(DISTURBED) and not out(UPRIGHT)
+    X = np.concatenate([place_states(4, n=300)["P1"], [DISTURBED, UPRIGHT, FAR]])
+    np.testing.assert_array_equal(back.holds(X), [back(x) for x in X])
+    np.testing.assert_array_equal(out.holds(X), [out(x) for x in X])
+
+    path = tmp_path / "t7.npz"
+    back.save(path)
+    again = load_condition(path, input_names=NAMES)
+    assert isinstance(again, RegionCondition) and again.into == "P1" and again.rather_than == "P2"
+    np.testing.assert_array_equal(again.holds(X), back.holds(X))
+
+
+def test_save_load_round_trip_and_bad_files(regions, tmp_path):
+    path = tmp_path / "regions.npz"
+    regions.save(path)
+    back = PlaceRegions.load(path, input_names=NAMES)
+    X = place_states(5, n=300)["P1"]
+    for p in regions.places_:
+        np.testing.assert_array_equal(back.scores(X)[p], regions.scores(X)[p])
+    good = path.read_bytes()
+    with pytest.raises(InvalidInput, match="input_names"):
+        PlaceRegions.load(path, input_names=("s", "c", "omega"))
+
+    arrays, meta = load_npz(path, KIND, VERSION)
+    bad = tmp_path / "bad.npz"
+    save_npz(bad, {**arrays, "p0_means": arrays["p0_means"][:, :1]}, meta, KIND, VERSION)
+    with pytest.raises(InvalidInput, match="p0_means") as e:
+        PlaceRegions.load(bad)
+    assert "bad.npz" in str(e.value)
+    save_npz(bad, arrays, {**meta, "places": ["P1"]}, KIND, VERSION)
+    with pytest.raises(InvalidInput, match="densities"):
+        PlaceRegions.load(bad)
+    with pytest.raises(InvalidInput, match="expected a 'region_condition'"):
+        RegionCondition.load(path)
+    path.write_bytes(good[:-40])
+    with pytest.raises(InvalidInput, match="regions.npz"):
+        PlaceRegions.load(path)
+    assert path.read_bytes() == good[:-40]
+
+
+def test_too_few_states():
+    with pytest.raises(ValueError, match="too few"):
+        PlaceRegions(NAMES).fit({"P1": np.zeros((5, 2))})
