@@ -1,0 +1,496 @@
+"""A transition's control law: Gaussian process regression with a fast one-state prediction path.
+
+The paper learns each maneuver's law y = f(x) by GP regression with the squared-exponential kernel
+``k(xi, xj) = σf² exp(−‖xi − xj‖² / 2l²)`` (eq. 1); the predictive mean is ``k*ᵀ K⁻¹ y`` (eq. 5) and
+the variance ``k(x*, x*) − k*ᵀ K⁻¹ k*`` (eq. 6), with ``K`` the kernel matrix plus the noise σn²I.
+
+:class:`GPLaw` is a scikit-learn estimator:
+
+* inputs and outputs are standardised; ARD length scales (one per input) by default;
+* **one kernel shared by all outputs** (one σf, one set of length scales, one noise level in
+  standardised output units). One Cholesky factor and one kernel vector per state serve every
+  output, so a law's cost at 1 kHz does not grow with the number of command components; the outputs
+  of one maneuver are functions of the same state with similar smoothness. If outputs differ
+  strongly in smoothness, fit one ``GPLaw`` per output;
+* hyperparameters maximise the log marginal likelihood (summed over the outputs) with L-BFGS-B on
+  our own analytic gradient, on a random subset of ``n_hyper`` points (the n³ cost makes the full
+  set pointless for hyperparameters), from a default start plus ``n_restarts`` random ones;
+* the posterior is then solved on the full set. Up to ``sparse_threshold`` points it is exact
+  (``α = K⁻¹y`` and the Cholesky factor); above, a sparse FITC posterior on ``n_inducing`` k-means
+  centres replaces it (:mod:`multiform.learn.sparse_gp`). FITC rather than DTC because its
+  diagonal correction keeps the variance honest far from the inducing points, at the same
+  prediction cost; DTC is available (``sparse_method="dtc"``).
+* Exact variance costs O(n²) per state (a triangular solve: ≈ 90 µs at n = 1,000, ≈ 0.5 ms at
+  n = 2,000 on these machines). Above ``exact_var_max_n`` points (default 1,000) the variance of an
+  exact GP is computed through a FITC companion on ``n_inducing`` points (O(m²)), in
+  :meth:`predict_one_var` and in :meth:`predict` alike, so the two always agree; the mean stays
+  exact. ``exact_var_max_n=None`` with ``sparse_threshold=None`` keeps everything exact.
+
+Variances are those of the latent law f(x) (eq. 6), in output units, without the observation noise
+(``noise_`` × ``y_scale_`` is that noise's standard deviation).
+
+The one-state path (:meth:`predict_one`, :meth:`predict_one_var`) is plain numpy on precomputed
+arrays: the input is mapped into the scaled space where the kernel is one ``exp`` of a squared
+distance expanded as ``z·u − ½|z|² − ½|u|²``; no validation, preallocated buffers.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from scipy.linalg import blas, lapack
+from scipy.optimize import minimize
+from sklearn.base import BaseEstimator, RegressorMixin
+from sklearn.utils.validation import check_is_fitted, check_X_y
+
+from ..errors import InvalidInput, Problem
+from ..io import load_npz, save_npz
+from .sparse_gp import SPARSE_METHODS, cholesky_jitter, se_kernel, select_inducing, sparse_posterior
+
+KIND = "gp_law"
+VERSION = 1
+MODES = ("exact", "sparse")
+_BATCH = 1024
+_LOG_2PI = float(np.log(2.0 * np.pi))
+# log-space bounds (standardised inputs and outputs)
+_BOUNDS_LENGTH = (np.log(1e-2), np.log(1e3))
+_BOUNDS_SF = (np.log(1e-2), np.log(1e2))
+_BOUNDS_NOISE = (np.log(1e-3), np.log(1e1))
+
+
+def neg_log_marginal_likelihood(theta: np.ndarray, X: np.ndarray, Y: np.ndarray, ard: bool
+                                ) -> tuple[float, np.ndarray]:
+    """Negative log marginal likelihood of a shared SE kernel over all columns of ``Y`` and its
+    gradient in ``theta = [log l (d or 1), log σf, log σn]``.
+
+    ``X`` (n, d) and ``Y`` (n, p) are standardised. With ``W = ααᵀ − p K⁻¹`` and ``G = W ∘ K_f``,
+    the gradient of the log likelihood is ``½ tr(W ∂K)``: ``Σ_i g_i z_id² − z_dᵀ G z_d`` for
+    ``log l_d`` (``g = G 1``, ``z = x / l``), ``Σ G`` for ``log σf`` and ``σn² tr W`` for ``log σn``.
+    """
+    n, d = X.shape
+    p = Y.shape[1]
+    ell = np.exp(theta[:-2])
+    sf2 = float(np.exp(2.0 * theta[-2]))
+    sn2 = float(np.exp(2.0 * theta[-1]))
+    Z = X / ell
+    Kf = se_kernel(Z, Z, sf2)
+    K = Kf.copy()
+    K.flat[::n + 1] += sn2
+    L, info = lapack.dpotrf(K, lower=1, clean=1, overwrite_a=1)
+    if info != 0:
+        return 1e25, np.zeros_like(theta)
+    alpha, _ = lapack.dpotrs(L, Y, lower=1)
+    nlml = 0.5 * float(np.sum(Y * alpha)) + p * float(np.sum(np.log(np.diag(L)))) + 0.5 * n * p * _LOG_2PI
+    Kinv, info = lapack.dpotri(L, lower=1, overwrite_c=1)
+    if info != 0:
+        return 1e25, np.zeros_like(theta)
+    Kinv = np.tril(Kinv)
+    Kinv += np.tril(Kinv, -1).T
+    W = alpha @ alpha.T
+    W -= p * Kinv
+    trW = float(np.trace(W))
+    G = W
+    G *= Kf
+    g = G.sum(axis=1)
+    grad_ell = g @ (Z * Z) - np.einsum("ij,ij->j", Z, G @ Z)
+    if not ard:
+        grad_ell = np.array([grad_ell.sum()])
+    grad = np.concatenate([grad_ell, [float(g.sum()), sn2 * trW]])
+    return nlml, -grad
+
+
+class GPLaw(BaseEstimator, RegressorMixin):
+    """GP regression control law (see the module docstring).
+
+    Parameters
+    ----------
+    ard: one length scale per input (True) or one for all.
+    n_hyper: points (a random subset) on which the hyperparameters are trained.
+    n_restarts: random restarts of the optimiser beyond the default start.
+    max_iter: L-BFGS-B iterations per start.
+    sparse_threshold: above this many training points the posterior is sparse (None: never).
+    n_inducing: inducing points of the sparse posterior / sparse variance companion.
+    sparse_method: "fitc" or "dtc".
+    exact_var_max_n: above this many points an exact GP's variance goes through the sparse
+        companion (None: always exact).
+    input_names, output_names: variable names stored with the law (checked against the data).
+    n_threads: BLAS threads while fitting. 1 by default: on a busy 2-core machine OpenBLAS with 2
+        threads made a 1,000-point Cholesky 30× slower than with 1.
+    random_state: seed for the hyperparameter subset, restarts and k-means.
+    """
+
+    def __init__(self, ard: bool = True, n_hyper: int = 1000, n_restarts: int = 1, max_iter: int = 200,
+                 sparse_threshold: int | None = 5000, n_inducing: int = 300, sparse_method: str = "fitc",
+                 exact_var_max_n: int | None = 1000, input_names: Sequence[str] | None = None,
+                 output_names: Sequence[str] | None = None, n_threads: int | None = 1,
+                 random_state: int = 0):
+        self.ard = ard
+        self.n_hyper = n_hyper
+        self.n_restarts = n_restarts
+        self.max_iter = max_iter
+        self.sparse_threshold = sparse_threshold
+        self.n_inducing = n_inducing
+        self.sparse_method = sparse_method
+        self.exact_var_max_n = exact_var_max_n
+        self.input_names = input_names
+        self.output_names = output_names
+        self.n_threads = n_threads
+        self.random_state = random_state
+
+    # -- fitting ------------------------------------------------------------------------------
+    def fit(self, X: np.ndarray, y: np.ndarray, theta: np.ndarray | None = None) -> GPLaw:
+        """Train hyperparameters (unless ``theta`` = [log l…, log σf, log σn] is given, in
+        standardised units) and solve the posterior on all of ``X`` (n, d), ``y`` (n,) or (n, p)."""
+        X, y = check_X_y(X, y, multi_output=True, y_numeric=True, dtype=np.float64)
+        self._check_params(X.shape[1], 1 if y.ndim == 1 else y.shape[1])
+        if self.n_threads is None:
+            return self._fit(X, y, theta)
+        from threadpoolctl import threadpool_limits
+        with threadpool_limits(limits=self.n_threads, user_api="blas"):
+            return self._fit(X, y, theta)
+
+    def _check_params(self, d: int, p: int) -> None:
+        if self.sparse_method not in SPARSE_METHODS:
+            raise ValueError(f"sparse_method must be one of {SPARSE_METHODS}, got {self.sparse_method!r}")
+        if self.n_inducing < 1 or self.n_hyper < 2:
+            raise ValueError("n_inducing must be ≥ 1 and n_hyper ≥ 2")
+        for what, names, k in (("input_names", self.input_names, d), ("output_names", self.output_names, p)):
+            if names is not None and len(names) != k:
+                raise ValueError(f"{what} has {len(names)} names but the data has {k} columns")
+
+    def _fit(self, X: np.ndarray, y: np.ndarray, theta: np.ndarray | None) -> GPLaw:
+        t0 = time.perf_counter()
+        self.y_1d_ = y.ndim == 1
+        Y = y.reshape(len(y), -1)
+        n, d = X.shape
+        self.n_features_in_ = d
+        self.n_outputs_ = Y.shape[1]
+        self.n_train_ = n
+        self.x_mean_ = X.mean(axis=0)
+        self.x_scale_ = _safe_scale(X.std(axis=0))
+        self.y_mean_ = Y.mean(axis=0)
+        self.y_scale_ = _safe_scale(Y.std(axis=0))
+        Xs = (X - self.x_mean_) / self.x_scale_
+        Ys = (Y - self.y_mean_) / self.y_scale_
+        rng = np.random.default_rng(self.random_state)
+        if theta is None:
+            theta, lml = self._optimise(Xs, Ys, rng)
+        else:
+            theta = np.asarray(theta, dtype=np.float64).reshape(-1)
+            n_ell = d if self.ard else 1
+            if theta.shape != (n_ell + 2,):
+                raise ValueError(f"theta must have {n_ell + 2} entries (log length scales, log σf, log σn)")
+            lml = None
+        ell = np.exp(theta[:-2])
+        self.length_scale_ = np.broadcast_to(ell, (d,)).astype(np.float64)
+        self.sigma_f_ = float(np.exp(theta[-2]))
+        self.noise_ = float(np.exp(theta[-1]))
+        self.log_marginal_likelihood_ = lml
+        self.n_hyper_used_ = min(n, self.n_hyper)
+        Z = Xs / self.length_scale_
+        sf2, sn2 = self.sigma_f_ ** 2, self.noise_ ** 2
+        self.mode_ = "sparse" if self.sparse_threshold is not None and n > self.sparse_threshold else "exact"
+        exact_var = self.exact_var_max_n is None or n <= self.exact_var_max_n
+        self.var_mode_ = "exact" if self.mode_ == "exact" and exact_var else "sparse"
+        self.Z_ = self.alpha_ = self.chol_ = None
+        self.inducing_ = self.beta_ = self.sparse_M_ = None
+        if self.mode_ == "exact":
+            K = se_kernel(Z, Z, sf2)
+            K.flat[::n + 1] += sn2
+            L, _ = cholesky_jitter(K, 1e-10 * sf2)
+            del K
+            self.Z_ = Z
+            self.alpha_ = lapack.dpotrs(L, Ys, lower=1)[0]
+            if self.var_mode_ == "exact":
+                self.chol_ = np.asfortranarray(L)
+        if self.var_mode_ == "sparse":
+            m = min(self.n_inducing, n)
+            self.inducing_ = select_inducing(Z, m, self.random_state)
+            self.beta_, self.sparse_M_ = sparse_posterior(Z, Ys, self.inducing_, sf2, sn2, self.sparse_method)
+        self.heldout_nrmse_ = None
+        self.fit_seconds_ = time.perf_counter() - t0
+        self._prepare()
+        return self
+
+    def _optimise(self, Xs: np.ndarray, Ys: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, float]:
+        n, d = Xs.shape
+        if n > self.n_hyper:
+            idx = rng.choice(n, self.n_hyper, replace=False)
+            Xs, Ys = Xs[idx], Ys[idx]
+        n_ell = d if self.ard else 1
+        bounds = [_BOUNDS_LENGTH] * n_ell + [_BOUNDS_SF, _BOUNDS_NOISE]
+        starts = [np.concatenate([np.zeros(n_ell), [0.0, np.log(0.1)]])]
+        for _ in range(self.n_restarts):
+            starts.append(np.concatenate([rng.uniform(np.log(0.2), np.log(5.0), n_ell),
+                                          [rng.uniform(np.log(0.5), np.log(2.0)),
+                                           rng.uniform(np.log(0.01), np.log(0.5))]]))
+        best = None
+        for x0 in starts:
+            res = minimize(neg_log_marginal_likelihood, x0, args=(Xs, Ys, self.ard), jac=True,
+                           method="L-BFGS-B", bounds=bounds, options={"maxiter": self.max_iter})
+            if best is None or res.fun < best.fun:
+                best = res
+        return np.asarray(best.x), -float(best.fun)
+
+    # -- the 1 kHz path -------------------------------------------------------------------------
+    def _prepare(self) -> None:
+        """Derived arrays and buffers of the prediction path, built from the stored fitted arrays.
+
+        Each point set (training inputs or inducing inputs) is stored augmented as ``[z, c, 1]`` with
+        ``c = log σf² − ½|z|²``, and the state as ``[u, 1, −½|u|²]``, so one gemv gives the exponent
+        ``log k = log σf² − ½|z − u|²`` of every point.
+        """
+        d = self.n_features_in_
+        w = 1.0 / (self.x_scale_ * self.length_scale_)
+        self._w = w
+        self._b = self.x_mean_ * w
+        self._sf2 = self.sigma_f_ ** 2
+        self._var_scale = self.y_scale_ ** 2
+        self._ua = np.zeros(d + 2)
+        self._ua[d] = 1.0
+        self._uh = self._ua[:d]
+        self._d1 = d + 1
+        if self.mode_ == "exact":
+            self._Zm = np.ascontiguousarray(self.Z_)
+            self._Zaug = _augment(self._Zm, self._sf2)
+            self._A = np.ascontiguousarray(self.alpha_ * self.y_scale_)
+            self._buf = np.empty(self._Zm.shape[0])
+        if self.inducing_ is not None:
+            self._sZ = np.ascontiguousarray(self.inducing_)
+            self._sZaug = _augment(self._sZ, self._sf2)
+            self._sB = np.ascontiguousarray(self.beta_ * self.y_scale_)
+            self._sM = np.ascontiguousarray(self.sparse_M_)
+            self._sbuf = np.empty(self._sZ.shape[0])
+            self._sbuf2 = np.empty(self._sZ.shape[0])
+        self._sparse_mean = self.mode_ == "sparse"
+        self._exact_var = self.var_mode_ == "exact"
+
+    def _load_state(self, x: np.ndarray) -> np.ndarray:
+        uh = self._uh
+        np.multiply(x, self._w, out=uh)
+        np.subtract(uh, self._b, out=uh)
+        self._ua[self._d1] = -0.5 * uh.dot(uh)
+        return self._ua
+
+    def predict_one(self, x: np.ndarray) -> np.ndarray:
+        """Predictive mean (eq. 5) of every output for one state ``x`` (1-D float64 array of
+        ``n_features_in_``); returns a new array of ``n_outputs_``.
+
+        The control-rate path: no validation, shared buffers (not thread-safe).
+        """
+        ua = self._load_state(x)
+        if self._sparse_mean:
+            buf, Zaug, W = self._sbuf, self._sZaug, self._sB
+        else:
+            buf, Zaug, W = self._buf, self._Zaug, self._A
+        np.dot(Zaug, ua, out=buf)
+        np.exp(buf, out=buf)
+        r = buf.dot(W)
+        r += self.y_mean_
+        return r
+
+    def predict_one_var(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Predictive mean and variance (eqs. 5, 6) of every output for one state ``x``;
+        returns ``(mean, var)``, each of ``n_outputs_``. Same contract as :meth:`predict_one`."""
+        ua = self._load_state(x)
+        if self._exact_var:
+            buf = self._buf
+            np.dot(self._Zaug, ua, out=buf)
+            np.exp(buf, out=buf)
+            mean = buf.dot(self._A)
+            mean += self.y_mean_
+            v = blas.dtrsv(self.chol_, buf, lower=1)
+            var = self._sf2 - v.dot(v)
+            return mean, (var if var > 0.0 else 0.0) * self._var_scale
+        sbuf = self._sbuf
+        np.dot(self._sZaug, ua, out=sbuf)
+        np.exp(sbuf, out=sbuf)
+        if self._sparse_mean:
+            mean = sbuf.dot(self._sB)
+        else:
+            buf = self._buf
+            np.dot(self._Zaug, ua, out=buf)
+            np.exp(buf, out=buf)
+            mean = buf.dot(self._A)
+        mean += self.y_mean_
+        np.dot(self._sM, sbuf, out=self._sbuf2)
+        var = self._sf2 - sbuf.dot(self._sbuf2)
+        return mean, (var if var > 0.0 else 0.0) * self._var_scale
+
+    # -- batches --------------------------------------------------------------------------------
+    def predict(self, X: np.ndarray, return_std: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """Predictive mean (and standard deviation of the latent law) for every row of ``X``.
+
+        Shapes follow the training targets: (n,) for 1-D ``y``, (n, p) otherwise.
+        """
+        check_is_fitted(self, "mode_")
+        X = np.asarray(X, dtype=np.float64)
+        if X.ndim != 2 or X.shape[1] != self.n_features_in_:
+            raise ValueError(f"X must have shape (n, {self.n_features_in_}), got {X.shape}")
+        n, p = X.shape[0], self.n_outputs_
+        mean = np.empty((n, p))
+        std = np.empty((n, p)) if return_std else None
+        for s in range(0, n, _BATCH):
+            U = X[s:s + _BATCH] * self._w - self._b
+            Ks = se_kernel(U, self._sZ, self._sf2) if self.inducing_ is not None else None
+            Ke = se_kernel(U, self._Zm, self._sf2) if self.mode_ == "exact" else None
+            mean[s:s + _BATCH] = (Ks @ self._sB if self._sparse_mean else Ke @ self._A) + self.y_mean_
+            if return_std:
+                if self._exact_var:
+                    V = lapack.dtrtrs(self.chol_, Ke.T, lower=1)[0]
+                    var = self._sf2 - np.einsum("ij,ij->j", V, V)
+                else:
+                    var = self._sf2 - np.einsum("ij,ij->i", Ks @ self._sM, Ks)
+                np.maximum(var, 0.0, out=var)
+                std[s:s + _BATCH] = np.sqrt(var[:, None] * self._var_scale)
+        if self.y_1d_:
+            mean = mean[:, 0]
+            std = std[:, 0] if return_std else None
+        return (mean, std) if return_std else mean
+
+    # -- evaluation and reporting ------------------------------------------------------------------
+    def heldout_error(self, X: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Normalised RMSE per output (RMSE / standard deviation of the held-out targets) on data not
+        used for fitting; remembered in ``heldout_nrmse_`` for :meth:`summary` and saved files."""
+        pred = self.predict(X).reshape(len(X), -1)
+        Y = np.asarray(y, dtype=np.float64).reshape(len(X), -1)
+        rmse = np.sqrt(np.mean((pred - Y) ** 2, axis=0))
+        self.heldout_nrmse_ = rmse / _safe_scale(Y.std(axis=0))
+        return self.heldout_nrmse_
+
+    def summary(self) -> dict[str, Any]:
+        """Compact description: size, mode, hyperparameters (length scales in input units; σf and
+        noise in standardised output units), held-out error if computed."""
+        check_is_fitted(self, "mode_")
+        names = list(self.input_names) if self.input_names is not None else [f"x{i}" for i in range(self.n_features_in_)]
+        out = {
+            "n": int(self.n_train_),
+            "mode": self.mode_,
+            "var_mode": self.var_mode_,
+            "n_inducing": 0 if self.inducing_ is None else int(self.inducing_.shape[0]),
+            "length_scale": {k: float(v) for k, v in zip(names, self.length_scale_ * self.x_scale_)},
+            "sigma_f": self.sigma_f_,
+            "noise": self.noise_,
+            "log_marginal_likelihood": self.log_marginal_likelihood_,
+            "heldout_nrmse": None if self.heldout_nrmse_ is None else [float(v) for v in self.heldout_nrmse_],
+        }
+        if self.output_names is not None:
+            out["outputs"] = list(self.output_names)
+        return out
+
+    # -- persistence ------------------------------------------------------------------------------
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the fitted law as arrays + JSON metadata in one ``.npz`` (atomic, no pickle)."""
+        check_is_fitted(self, "mode_")
+        arrays = {"x_mean": self.x_mean_, "x_scale": self.x_scale_, "y_mean": self.y_mean_,
+                  "y_scale": self.y_scale_, "length_scale": self.length_scale_,
+                  "hyper": np.array([self.sigma_f_, self.noise_])}
+        for key, attr in _FITTED_ARRAYS.items():
+            value = getattr(self, attr)
+            if value is not None:
+                arrays[key] = value
+        params = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.get_params().items()}
+        meta = {"params": params, "mode": self.mode_, "var_mode": self.var_mode_,
+                "n_train": int(self.n_train_), "n_features": int(self.n_features_in_),
+                "n_outputs": int(self.n_outputs_), "y_1d": bool(self.y_1d_),
+                "n_inducing": 0 if self.inducing_ is None else int(self.inducing_.shape[0]),
+                "n_hyper_used": int(self.n_hyper_used_),
+                "log_marginal_likelihood": self.log_marginal_likelihood_,
+                "heldout_nrmse": None if self.heldout_nrmse_ is None else list(map(float, self.heldout_nrmse_)),
+                "fit_seconds": self.fit_seconds_, "summary": self.summary()}
+        save_npz(path, arrays, meta, KIND, VERSION)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> GPLaw:
+        """Read a law written by :meth:`save`; any inconsistency raises :class:`InvalidInput`
+        naming the file and the array or metadata entry."""
+        arrays, meta = load_npz(path, KIND, VERSION)
+        return cls._from_arrays(arrays, meta, str(path))
+
+    @classmethod
+    def _from_arrays(cls, arrays: dict[str, np.ndarray], meta: dict[str, Any], file: str) -> GPLaw:
+        def fail(element: str, msg: str) -> InvalidInput:
+            return InvalidInput(msg, file=file, element=element)
+
+        try:
+            params = dict(meta["params"])
+            mode, var_mode = meta["mode"], meta["var_mode"]
+            n, d, p = int(meta["n_train"]), int(meta["n_features"]), int(meta["n_outputs"])
+            m = int(meta["n_inducing"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise fail("meta", f"metadata entry missing or malformed ({exc})") from None
+        if mode not in MODES:
+            raise fail("meta.mode", f"unknown mode {mode!r}; known: {', '.join(MODES)}")
+        if var_mode not in MODES or (mode == "sparse" and var_mode != "sparse"):
+            raise fail("meta.var_mode", f"invalid variance mode {var_mode!r} for mode {mode!r}")
+        if min(n, d, p) < 1 or m < 0 or (var_mode == "sparse" and m < 1):
+            raise fail("meta", f"bad sizes n_train={n}, n_features={d}, n_outputs={p}, n_inducing={m}")
+        try:
+            law = cls(**params)
+        except TypeError as exc:
+            raise fail("meta.params", f"unknown estimator parameter ({exc})") from None
+        expected: dict[str, tuple[int, ...]] = {
+            "x_mean": (d,), "x_scale": (d,), "y_mean": (p,), "y_scale": (p,), "length_scale": (d,), "hyper": (2,)}
+        if mode == "exact":
+            expected.update(Z=(n, d), alpha=(n, p))
+        if var_mode == "exact":
+            expected.update(chol=(n, n))
+        if var_mode == "sparse":
+            expected.update(inducing=(m, d), beta=(m, p), sparse_M=(m, m))
+        problems = []
+        for key, shape in expected.items():
+            if key not in arrays:
+                problems.append(Problem(file, key, f"array is missing (needed by mode {mode!r})"))
+                continue
+            a = arrays[key]
+            if a.dtype.kind not in "fiu":
+                problems.append(Problem(file, key, f"has dtype {a.dtype}, expected float numbers"))
+            elif a.shape != shape:
+                problems.append(Problem(file, key, f"has shape {a.shape}, expected {shape} "
+                                                   f"(n_train={n}, n_features={d}, n_outputs={p}, n_inducing={m})"))
+            elif not np.all(np.isfinite(a)):
+                problems.append(Problem(file, key, "has non-finite values"))
+        if not problems:
+            for key in ("x_scale", "y_scale", "length_scale", "hyper"):
+                if np.any(arrays[key] <= 0):
+                    problems.append(Problem(file, key, "must be positive"))
+        if problems:
+            raise InvalidInput(problems)
+        f64 = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in arrays.items() if k in expected}
+        law.x_mean_, law.x_scale_ = f64["x_mean"], f64["x_scale"]
+        law.y_mean_, law.y_scale_ = f64["y_mean"], f64["y_scale"]
+        law.length_scale_ = f64["length_scale"]
+        law.sigma_f_, law.noise_ = float(f64["hyper"][0]), float(f64["hyper"][1])
+        for key, attr in _FITTED_ARRAYS.items():
+            setattr(law, attr, f64.get(key))
+        if law.chol_ is not None:
+            law.chol_ = np.asfortranarray(law.chol_)
+        law.mode_, law.var_mode_ = mode, var_mode
+        law.n_train_, law.n_features_in_, law.n_outputs_ = n, d, p
+        law.y_1d_ = bool(meta.get("y_1d", False)) and p == 1
+        law.n_hyper_used_ = int(meta.get("n_hyper_used", min(n, law.n_hyper)))
+        law.log_marginal_likelihood_ = meta.get("log_marginal_likelihood")
+        h = meta.get("heldout_nrmse")
+        law.heldout_nrmse_ = None if h is None else np.asarray(h, dtype=np.float64)
+        law.fit_seconds_ = meta.get("fit_seconds")
+        law._prepare()
+        return law
+
+
+_FITTED_ARRAYS = {"Z": "Z_", "alpha": "alpha_", "chol": "chol_", "inducing": "inducing_",
+                  "beta": "beta_", "sparse_M": "sparse_M_"}
+
+
+def _augment(Z: np.ndarray, sf2: float) -> np.ndarray:
+    c = np.log(sf2) - 0.5 * np.einsum("ij,ij->i", Z, Z)
+    return np.ascontiguousarray(np.column_stack([Z, c, np.ones(Z.shape[0])]))
+
+
+def _safe_scale(s: np.ndarray) -> np.ndarray:
+    s = np.asarray(s, dtype=np.float64).copy()
+    s[~(s > 1e-12)] = 1.0
+    return s
