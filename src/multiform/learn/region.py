@@ -50,31 +50,16 @@ class _PlaceDensity:
         self.means = np.asarray(means, dtype=np.float64)
         self.prec_chol = np.asarray(prec_chol, dtype=np.float64)
         self.tau, self.median = float(tau), float(median)
-        k, d = self.means.shape
-        self._W = np.ascontiguousarray(self.prec_chol.transpose(1, 0, 2).reshape(d, k * d))
-        self._c = np.einsum("kd,kde->ke", self.means, self.prec_chol).reshape(-1)
-        logdet = np.log(np.abs(np.einsum("kii->ki", self.prec_chol))).sum(1)
-        self._const = np.log(self.weights) + logdet - 0.5 * d * np.log(2 * np.pi)
-        self._k, self._d = k, d
-        self._slope = LN9 / max(self.median - self.tau, 1e-9)
+        self._k, self._d = self.means.shape
+        self.slope = LN9 / max(self.median - self.tau, 1e-9)
 
     def log_density(self, U: np.ndarray) -> np.ndarray:
-        """ℓ for rows of standardised ``U`` (n, d)."""
-        Y = (U @ self._W - self._c).reshape(len(U), self._k, self._d)
-        return logsumexp(self._const - 0.5 * np.einsum("nkd,nkd->nk", Y, Y), axis=1)
-
-    def log_density_one(self, u: np.ndarray) -> float:
-        y = u @ self._W
-        y -= self._c
-        y *= y
-        a = self._const - 0.5 * y.reshape(self._k, self._d).sum(1)
-        m = a.max()
-        return float(m + np.log(np.exp(a - m).sum()))
-
-    def score(self, ell: np.ndarray | float) -> np.ndarray | float:
-        z = np.clip(-self._slope * (np.asarray(ell) - self.tau), -700, 700)
-        out = 1.0 / (1.0 + np.exp(z))
-        return float(out) if np.ndim(out) == 0 else out
+        """ℓ for rows of standardised ``U`` (n, d) (used while calibrating)."""
+        Y = np.einsum("nkd,kde->nke", U[:, None, :] - self.means[None], self.prec_chol) if len(U) else \
+            np.zeros((0, self._k, self._d))
+        logdet = np.log(np.abs(np.einsum("kii->ki", self.prec_chol))).sum(1)
+        const = np.log(self.weights) + logdet - 0.5 * self._d * np.log(2 * np.pi)
+        return logsumexp(const - 0.5 * np.einsum("nke,nke->nk", Y, Y), axis=1)
 
     def to_arrays(self, prefix: str) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         return ({f"{prefix}weights": self.weights, f"{prefix}means": self.means, f"{prefix}prec_chol": self.prec_chol},
@@ -157,8 +142,7 @@ class PlaceRegions(BaseEstimator):
             half = len(U) // 2
             fit_u, cal_u = U[perm[:half]], U[perm[half:]]
             gm = self._mixture(fit_u)
-            dens = _PlaceDensity(gm.weights_, gm.means_, gm.precisions_cholesky_, 0.0, 1.0)
-            ell = dens.log_density(cal_u)
+            ell = _PlaceDensity(gm.weights_, gm.means_, gm.precisions_cholesky_, 0.0, 1.0).log_density(cal_u)
             dens = _PlaceDensity(gm.weights_, gm.means_, gm.precisions_cholesky_,
                                  float(np.quantile(ell, 1 - self.coverage)), float(np.median(ell)))
             self.densities_[p] = dens
@@ -181,34 +165,73 @@ class PlaceRegions(BaseEstimator):
         return best
 
     def _prepare(self) -> None:
-        self._inv_scale = 1.0 / self.scale_
-        self.n_features_in_ = len(self.mean_)
+        """Stack every place's mixture into one affine map from the raw state, so scoring all places
+        costs a handful of numpy calls: y = x W - c; a = const - (y*y) S; ℓ_p = logsumexp over p's
+        components (via e @ G); z_p = (ℓ_p - τ_p) · slope_p, the calibrated logit (score = σ(z))."""
+        self.n_features_in_ = d = len(self.mean_)
+        inv = 1.0 / self.scale_
+        Ws, cs, consts, groups = [], [], [], []
+        for i, p in enumerate(self.places_):
+            dn = self.densities_[p]
+            k = dn._k
+            W = dn.prec_chol.transpose(1, 0, 2).reshape(d, k * d)          # u @ W = [u P_1, ..., u P_k]
+            c = np.einsum("kd,kde->ke", dn.means, dn.prec_chol).reshape(-1)
+            Ws.append(inv[:, None] * W / np.sqrt(2.0))                      # folds standardisation and 1/2
+            cs.append(((self.mean_ * inv) @ W + c) / np.sqrt(2.0))
+            logdet = np.log(np.abs(np.einsum("kii->ki", dn.prec_chol))).sum(1)
+            consts.append(np.log(dn.weights) + logdet - 0.5 * d * np.log(2 * np.pi))
+            groups += [i] * k
+        self._W = np.ascontiguousarray(np.concatenate(Ws, axis=1))
+        self._c = np.concatenate(cs)
+        self._const = np.concatenate(consts)
+        K = len(self._const)
+        self._S = np.kron(np.eye(K), np.ones((d, 1)))                         # (K d, K) sums each block
+        self._G = np.zeros((K, len(self.places_)))
+        self._G[np.arange(K), groups] = 1.0
+        self._groups = [np.flatnonzero(np.array(groups) == i) for i in range(len(self.places_))]
+        self._tau = np.array([self.densities_[p].tau for p in self.places_])
+        self._slope = np.array([self.densities_[p].slope for p in self.places_])
+        self._index = {p: i for i, p in enumerate(self.places_)}
+
+    def logits_one(self, x: np.ndarray) -> np.ndarray:
+        """z per place (``places_`` order) for one raw state; the control-rate path."""
+        y = x @ self._W
+        y -= self._c
+        y *= y
+        a = self._const - y @ self._S
+        m = a.max()
+        # a place whose components all underflow gets ℓ ≈ max - 690: far outside it, as it should be
+        return (m + np.log(np.exp(a - m) @ self._G + 1e-300) - self._tau) * self._slope
+
+    def logits(self, X: np.ndarray) -> np.ndarray:
+        """z for rows of raw states ``X``: shape (n, n_places)."""
+        X = np.atleast_2d(np.asarray(X, dtype=np.float64))
+        if X.shape[1] != self.n_features_in_:
+            raise ValueError(f"expected {self.n_features_in_} state entries, got {X.shape[1]}")
+        Y = X @ self._W - self._c
+        A = self._const - (Y * Y) @ self._S
+        ell = np.stack([logsumexp(A[:, g], axis=1) for g in self._groups], axis=1)
+        return (ell - self._tau) * self._slope
 
     # -- scoring ------------------------------------------------------------------------------------
     def scores(self, X: np.ndarray) -> dict[str, np.ndarray]:
         """Score in [0, 1] of every place for every row of ``X`` (n, d) — a diagnosis ``RegionScorer``."""
-        U = (np.atleast_2d(np.asarray(X, dtype=np.float64)) - self.mean_) * self._inv_scale
-        return {p: np.asarray(d.score(d.log_density(U))).reshape(-1) for p, d in self.densities_.items()}
+        S = _sigmoid(self.logits(X))
+        return {p: S[:, i] for i, p in enumerate(self.places_)}
 
     def score_one(self, x: np.ndarray, place: str) -> float:
-        """One place's score for one state (the control-rate path)."""
-        d = self.densities_[place]
-        return d.score(d.log_density_one((x - self.mean_) * self._inv_scale))
-
-    def log_density(self, X: np.ndarray) -> dict[str, np.ndarray]:
-        U = (np.atleast_2d(np.asarray(X, dtype=np.float64)) - self.mean_) * self._inv_scale
-        return {p: d.log_density(U) for p, d in self.densities_.items()}
+        """One place's score for one state."""
+        return float(_sigmoid(self.logits_one(np.asarray(x, dtype=np.float64))[self._index[place]]))
 
     def best(self, X: np.ndarray) -> list[str | None]:
         """Per row, the best-matching place, or None when no place's score reaches ``threshold_``."""
-        s = self.scores(X)
-        S = np.stack([s[p] for p in self.places_], axis=1)
-        k = S.argmax(1)
-        return [self.places_[i] if S[r, i] >= self.threshold_ else None for r, i in enumerate(k)]
+        Z = self.logits(X)
+        k = Z.argmax(1)
+        return [self.places_[i] if Z[r, i] >= 0.0 else None for r, i in enumerate(k)]
 
     def belongs(self, X: np.ndarray, place: str) -> np.ndarray:
         """Per row: ``place`` scores at least ``threshold_``."""
-        return self.scores(X)[place] >= self.threshold_
+        return self.logits(X)[:, self._index[place]] >= 0.0
 
     def coverage_on(self, samples: Mapping[str, np.ndarray]) -> dict[str, float]:
         """Fraction of each place's given states that score ≥ ``threshold_`` for that place."""
@@ -299,37 +322,34 @@ class RegionCondition:
     calls with one state in ``input_names`` order).
 
     ``mode="into"``: holds when the state belongs to ``into`` and scores higher there than in
-    ``rather_than``; ``mode="outside"``: holds when no place's score reaches the threshold.
+    ``rather_than``; ``mode="outside"``: holds when no place's score reaches the threshold. Decided
+    on the calibrated logits z (score = σ(z), so score ≥ 0.5 ⇔ z ≥ 0) — no exponentials saturate.
     """
 
     def __init__(self, regions: PlaceRegions, mode: str, into: str | None = None, rather_than: str | None = None):
         if mode not in ("into", "outside"):
             raise ValueError(f"mode must be 'into' or 'outside', got {mode!r}")
+        if mode == "into" and into is None:
+            raise ValueError("an 'into' condition needs its place")
         self.regions, self.mode, self.into, self.rather_than = regions, mode, into, rather_than
         self.input_names = tuple(regions.input_names)
-        self.threshold = regions.threshold_
-        self._into = regions.densities_[into] if into else None
-        self._away = regions.densities_[rather_than] if rather_than else None
-        self._all = list(regions.densities_.values())
+        self._i = regions._index[into] if into else -1
+        self._j = regions._index[rather_than] if rather_than else -1
 
     def __call__(self, x: np.ndarray) -> bool:
-        r = self.regions
-        u = (x - r.mean_) * r._inv_scale
+        z = self.regions.logits_one(x)
         if self.mode == "outside":
-            return all(d.score(d.log_density_one(u)) < self.threshold for d in self._all)
-        assert self._into is not None
-        s = self._into.score(self._into.log_density_one(u))
-        if s < self.threshold:
-            return False
-        return self._away is None or s > self._away.score(self._away.log_density_one(u))
+            return bool(z.max() < 0.0)
+        zi = z[self._i]
+        return bool(zi >= 0.0 and (self._j < 0 or zi > z[self._j]))
 
     def holds(self, X: np.ndarray) -> np.ndarray:
         """Vectorised :meth:`__call__` over rows."""
-        s = self.regions.scores(X)
+        Z = self.regions.logits(X)
         if self.mode == "outside":
-            return np.all(np.stack([v < self.threshold for v in s.values()]), axis=0)
-        ok = s[self.into] >= self.threshold
-        return ok & (s[self.into] > s[self.rather_than]) if self.rather_than else ok
+            return Z.max(axis=1) < 0.0
+        ok = Z[:, self._i] >= 0.0
+        return ok & (Z[:, self._i] > Z[:, self._j]) if self._j >= 0 else ok
 
     def save(self, path: str | os.PathLike) -> None:
         arrays, meta = self.regions.to_arrays()
@@ -350,3 +370,7 @@ class RegionCondition:
         if mode == "into" and into is None:
             raise InvalidInput("an 'into' condition needs its place", file=f, element="into")
         return cls(regions, mode, into, away)
+
+
+def _sigmoid(z: np.ndarray) -> np.ndarray:
+    return 1.0 / (1.0 + np.exp(-np.clip(z, -700, 700)))
