@@ -2,9 +2,12 @@
 
 The paper's judges: "a pool of different learning kernels … from which the learning agent selects
 to achieve the best clustering result". Every kernel of the pool (RBF, polynomial, linear, sigmoid)
-is tried with a small grid over C and its own parameters, on standardised features, with the same
-stratified folds; each kernel's best cross-validated score is kept in ``cv_scores_`` and the best
-kernel overall is refitted on all samples.
+is tried with a small grid over C and its own parameters (``DEFAULT_GRIDS``: 12 + 6 + 4 + 6
+candidates), on standardised features, with the same stratified folds — and, if ``subsets`` name
+column subsets of the features, on each of them. Each kernel's best cross-validated score is kept
+in ``cv_scores_``; the best (subset, kernel, parameters) overall is refitted on all samples. Ties go
+to the smaller feature subset, then to the pool's order. Scoring is balanced accuracy by default
+(mentor labels are rarely balanced), and ``class_weight="balanced"`` for the same reason.
 
 Scores in [0, 1] come from Platt scaling (own code, the Lin–Lin–Weng 2007 algorithm with
 prior-smoothed targets) fitted on the *cross-validated* decision values of the chosen candidate —
