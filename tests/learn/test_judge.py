@@ -1,6 +1,8 @@
 """Judges learn the mentor's criteria, are revised by new labels without losing old ones, and grade
 whole trials; the kernel pool copes with the label sets a few demonstrations give."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -37,6 +39,9 @@ def test_held_out_accuracy_and_pool_report(judges, place, floor):
     assert j.cv_scores_[j.best_kernel_]["score"] == max(r["score"] for r in j.cv_scores_.values())
     s = j.grade_many(test)
     assert np.all((s >= 0) & (s <= 1))
+    diverged = dataclasses.replace(test[0], values=np.where(np.arange(len(test[0].values))[:, None] > 5, np.nan,
+                                                           test[0].values))
+    assert j.grade(diverged) == 0.0
 
 
 def test_features_have_names_and_known_values():
@@ -161,3 +166,21 @@ def test_save_load_and_bad_judge_files(judges, tmp_path):
     with pytest.raises(InvalidInput, match="judge_P2.npz"):
         Judge.load(path)
     assert path.read_bytes() == good[: len(good) // 3]
+
+
+def test_a_failed_save_leaves_the_old_file(judges, tmp_path, monkeypatch):
+    path = tmp_path / "judge_P1.npz"
+    judges["P1"].save(path)
+    good = path.read_bytes()
+
+    def broken_savez(fh, **arrays):
+        fh.write(b"PK\x03\x04 half an archive")
+        raise OSError("disk full")
+
+    monkeypatch.setattr("multiform.io.np.savez", broken_savez)
+    with pytest.raises(OSError, match="disk full"):
+        judges["P2"].save(path)
+    assert path.read_bytes() == good
+    assert [p.name for p in tmp_path.iterdir()] == ["judge_P1.npz"]     # no temporary left behind
+    monkeypatch.undo()
+    assert Judge.load(path, place="P1").best_kernel_ == judges["P1"].best_kernel_

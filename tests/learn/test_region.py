@@ -7,6 +7,9 @@ from multiform.errors import InvalidInput
 from multiform.io import load_npz, save_npz
 from multiform.learn.condition import load_condition
 from multiform.learn.region import KIND, VERSION, PlaceRegions, RegionCondition
+from multiform.petri.firing import NetRunner
+from multiform.petri.revision import add_transition
+from multiform.petri.skillfile import load_skill
 
 from .synthetic import place_states
 
@@ -62,6 +65,18 @@ def test_conditions_for_the_repair_loop(regions, tmp_path):
     again = load_condition(path, input_names=NAMES)
     assert isinstance(again, RegionCondition) and again.into == "P1" and again.rather_than == "P2"
     np.testing.assert_array_equal(again.holds(X), back.holds(X))
+
+
+def test_t7_back_to_swung_up_in_the_net(regions):
+    """The paper's repair: a transition from "balanced" back to "swung up" that fires when a push
+    has thrown the state into the swing-up region."""
+    apn, _ = add_transition(load_skill("pendulum"), "t7", {"in": ["P2"], "out": ["P1"], "law": "swing_up",
+                                                            "condition": {"model": "t7"}}, "test")
+    runner = NetRunner(apn, ["theta", "omega", "x", "xdot"], learned={"t7": regions.condition("P1", "P2")}, rng=0)
+    assert runner.tick([np.pi, 0.0, 0.0, 0.0], 0.0) == ["t0"]
+    assert runner.tick([0.02, 0.1, 0.0, 0.0], 0.1) == ["t1"]          # balanced
+    assert runner.tick([0.01, -0.2, 0.0, 0.0], 0.2) == []              # still balanced: t7 quiet
+    assert runner.tick([0.6, 3.0, 0.0, 0.0], 0.3) == ["t7"]            # pushed: back to swing-up
 
 
 def test_save_load_round_trip_and_bad_files(regions, tmp_path):

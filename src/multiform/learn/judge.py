@@ -139,8 +139,14 @@ class Judge(BaseEstimator):
         return float(self.grade_many([segment])[0])
 
     def grade_many(self, segments: Sequence[Segment]) -> np.ndarray:
+        """Scores of several segments; one with non-finite values (a diverged trial) scores 0."""
         self._check_fitted()
-        return self.pool_.score_samples(feature_matrix(segments, self.variables))
+        X = feature_matrix(segments, self.variables)
+        ok = np.all(np.isfinite(X), axis=1)
+        out = np.zeros(len(X))
+        if ok.any():
+            out[ok] = self.pool_.score_samples(X[ok])
+        return out
 
     def predict(self, segments: Sequence[Segment]) -> np.ndarray:
         """Verdicts: True where the score is at least 0.5."""

@@ -6,7 +6,7 @@ is tried with a small grid over C and its own parameters (``DEFAULT_GRIDS``: 12 
 candidates), on standardised features, with the same stratified folds — and, if ``subsets`` name
 column subsets of the features, on each of them. Each kernel's best cross-validated score is kept
 in ``cv_scores_``; the best (subset, kernel, parameters) overall is refitted on all samples. Ties go
-to the smaller feature subset, then to the pool's order. Scoring is balanced accuracy by default
+to the steadier candidate (smaller std over folds), then the smaller subset, then the pool's order. Scoring is balanced accuracy by default
 (mentor labels are rarely balanced), and ``class_weight="balanced"`` for the same reason.
 
 Scores in [0, 1] come from Platt scaling (own code, the Lin–Lin–Weng 2007 algorithm with
