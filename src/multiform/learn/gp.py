@@ -55,6 +55,7 @@ KIND = "gp_law"
 VERSION = 1
 MODES = ("exact", "sparse")
 _BATCH = 1024
+_PROBE = 300
 _LOG_2PI = float(np.log(2.0 * np.pi))
 # log-space bounds (standardised inputs and outputs)
 _BOUNDS_LENGTH = (np.log(1e-2), np.log(1e3))
@@ -123,9 +124,9 @@ class GPLaw(BaseEstimator, RegressorMixin):
     random_state: seed for the hyperparameter subset, restarts and k-means.
     """
 
-    def __init__(self, ard: bool = True, n_hyper: int = 1000, n_restarts: int = 1, max_iter: int = 200,
+    def __init__(self, ard: bool = True, n_hyper: int = 1000, n_restarts: int = 2, max_iter: int = 200,
                  sparse_threshold: int | None = 5000, n_inducing: int = 300, sparse_method: str = "fitc",
-                 exact_var_max_n: int | None = 1000, input_names: Sequence[str] | None = None,
+                 exact_var_max_n: int | None = 500, input_names: Sequence[str] | None = None,
                  output_names: Sequence[str] | None = None, n_threads: int | None = 1,
                  random_state: int = 0):
         self.ard = ard
@@ -217,10 +218,15 @@ class GPLaw(BaseEstimator, RegressorMixin):
         return self
 
     def _optimise(self, Xs: np.ndarray, Ys: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, float]:
+        """Maximise the log marginal likelihood on a random subset of ``n_hyper`` points.
+
+        Restarts are cheap: every start (the default one and ``n_restarts`` random ones) is
+        optimised on a probe subset of 300 points, and only the best optimum is refined on the
+        ``n_hyper`` subset (one eval costs ≈ 0.1 s at 1,000 points, ≈ 4 ms at 300).
+        """
         n, d = Xs.shape
-        if n > self.n_hyper:
-            idx = rng.choice(n, self.n_hyper, replace=False)
-            Xs, Ys = Xs[idx], Ys[idx]
+        idx = rng.permutation(n)[:self.n_hyper]
+        Xs, Ys = Xs[idx], Ys[idx]
         n_ell = d if self.ard else 1
         bounds = [_BOUNDS_LENGTH] * n_ell + [_BOUNDS_SF, _BOUNDS_NOISE]
         starts = [np.concatenate([np.zeros(n_ell), [0.0, np.log(0.1)]])]
@@ -228,12 +234,15 @@ class GPLaw(BaseEstimator, RegressorMixin):
             starts.append(np.concatenate([rng.uniform(np.log(0.2), np.log(5.0), n_ell),
                                           [rng.uniform(np.log(0.5), np.log(2.0)),
                                            rng.uniform(np.log(0.01), np.log(0.5))]]))
-        best = None
-        for x0 in starts:
-            res = minimize(neg_log_marginal_likelihood, x0, args=(Xs, Ys, self.ard), jac=True,
-                           method="L-BFGS-B", bounds=bounds, options={"maxiter": self.max_iter})
-            if best is None or res.fun < best.fun:
-                best = res
+
+        def run(x0: np.ndarray, X: np.ndarray, Y: np.ndarray) -> Any:
+            return minimize(neg_log_marginal_likelihood, x0, args=(X, Y, self.ard), jac=True,
+                            method="L-BFGS-B", bounds=bounds, options={"maxiter": self.max_iter})
+
+        if len(starts) > 1 and len(Xs) > _PROBE:
+            probes = [run(x0, Xs[:_PROBE], Ys[:_PROBE]) for x0 in starts]
+            starts = [min(probes, key=lambda r: r.fun).x]
+        best = min((run(x0, Xs, Ys) for x0 in starts), key=lambda r: r.fun)
         return np.asarray(best.x), -float(best.fun)
 
     # -- the 1 kHz path -------------------------------------------------------------------------
@@ -263,9 +272,8 @@ class GPLaw(BaseEstimator, RegressorMixin):
             self._sZ = np.ascontiguousarray(self.inducing_)
             self._sZaug = _augment(self._sZ, self._sf2)
             self._sB = np.ascontiguousarray(self.beta_ * self.y_scale_)
-            self._sM = np.ascontiguousarray(self.sparse_M_)
+            self._sM = np.asfortranarray(self.sparse_M_)      # dsymv reads its lower triangle only
             self._sbuf = np.empty(self._sZ.shape[0])
-            self._sbuf2 = np.empty(self._sZ.shape[0])
         self._sparse_mean = self.mode_ == "sparse"
         self._exact_var = self.var_mode_ == "exact"
 
@@ -317,8 +325,7 @@ class GPLaw(BaseEstimator, RegressorMixin):
             np.exp(buf, out=buf)
             mean = buf.dot(self._A)
         mean += self.y_mean_
-        np.dot(self._sM, sbuf, out=self._sbuf2)
-        var = self._sf2 - sbuf.dot(self._sbuf2)
+        var = self._sf2 - sbuf.dot(blas.dsymv(1.0, self._sM, sbuf, lower=1))
         return mean, (var if var > 0.0 else 0.0) * self._var_scale
 
     # -- batches --------------------------------------------------------------------------------

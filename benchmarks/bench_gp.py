@@ -1,0 +1,110 @@
+"""GP control law: fit time and one-state latency on the 1 kHz path.
+
+Targets (issue 4): fit with hyperparameters for n = 2,000 ≤ 10 s; one law evaluation for one state
+(5 inputs) on one core, over ≥ 10,000 calls — exact GP n = 2,000 mean p99 ≤ 25 µs; sparse GP m = 300
+built from n = 50,000, mean + variance p99 ≤ 30 µs. Also prints the exact GP's mean + variance cost
+and the n above which `GPLaw` stops computing the variance exactly on the hot path.
+
+Data: a smooth nonlinear law of 5 state variables (pendulum-like angle, rate, cart position and
+velocity, a phase) with 2 command outputs plus noise — synthetic, so the truth is known.
+
+Usage: .venv/bin/python benchmarks/bench_gp.py [--calls N] [--quick]
+"""
+
+import argparse
+import itertools
+import os
+import time
+
+import numpy as np
+
+from _timing import describe, latencies, single_thread
+from multiform.learn.gp import GPLaw
+
+NOISE = 0.05
+
+
+def law(X: np.ndarray) -> np.ndarray:
+    th, om, x, xd, ph = X.T
+    a = 2.0 * np.sin(th) * np.cos(0.5 * om) - 0.8 * x - 0.4 * xd + 0.3 * np.sin(ph) * om
+    b = np.tanh(1.5 * th + 0.5 * om) + 0.2 * x * xd + 0.1 * ph ** 2
+    return np.column_stack([a, b])
+
+
+def sample(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    X = np.column_stack([rng.uniform(-np.pi, np.pi, n), rng.uniform(-4, 4, n), rng.uniform(-0.5, 0.5, n),
+                         rng.uniform(-1.5, 1.5, n), rng.uniform(-1, 1, n)])
+    Y = law(X)
+    return X, Y + NOISE * Y.std(axis=0) * rng.normal(size=Y.shape)
+
+
+def timed(name: str, fn, states: np.ndarray, calls: int) -> np.ndarray:
+    it = itertools.cycle(list(states))
+    t = latencies(lambda: fn(next(it)), calls=calls, warmup=1000)
+    print("  " + describe(name, t))
+    return t
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--calls", type=int, default=20_000)
+    ap.add_argument("--quick", action="store_true", help="skip the n = 50,000 sparse fit")
+    args = ap.parse_args()
+    rng = np.random.default_rng(0)
+    Xt, Yt = sample(2000, rng)
+    Yt_true = law(Xt)
+    states = [Xt[i].copy() for i in range(1000)]
+    print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} "
+          f"(other work on a shared machine inflates every figure)")
+
+    print("\n== fit with hyperparameters, n = 2,000, 5 inputs, 2 outputs (defaults: ARD, n_hyper=1000, "
+          "1 restart, fitting pinned to 1 BLAS thread) ==")
+    X, Y = sample(2000, rng)
+    t0 = time.perf_counter()
+    exact = GPLaw(input_names=["theta", "omega", "x", "xdot", "phase"], output_names=["ax", "az"]).fit(X, Y)
+    fit_s = time.perf_counter() - t0
+    exact.heldout_error(Xt, Yt_true)
+    s = exact.summary()
+    print(f"  fit: {fit_s:.2f} s (target ≤ 10 s: {'met' if fit_s <= 10 else 'NOT met'})")
+    print(f"  mode {s['mode']}, variance {s['var_mode']} ({s['n_inducing']} inducing points); "
+          f"σf {s['sigma_f']:.3g}, noise {s['noise']:.3g} (standardised)")
+    print("  length scales: " + ", ".join(f"{k} {v:.3g}" for k, v in s["length_scale"].items()))
+    print("  held-out nRMSE vs the noiseless law: " + ", ".join(f"{v:.4f}" for v in s["heldout_nrmse"]))
+
+    theta = np.concatenate([np.log(exact.length_scale_), [np.log(exact.sigma_f_), np.log(exact.noise_)]])
+    print("\n== one state, one core (BLAS pinned to 1 thread with threadpoolctl), "
+          f"{args.calls} calls each ==")
+    with single_thread():
+        t = timed("exact n=2000, mean only (predict_one)", exact.predict_one, states, args.calls)
+        p99 = np.percentile(t, 99) * 1e6
+        print(f"  target p99 ≤ 25 µs: {'met' if p99 <= 25 else 'NOT met'} ({p99:.2f} µs)")
+        timed(f"exact n=2000 mean + variance through its FITC companion (default, n > "
+              f"exact_var_max_n={exact.exact_var_max_n})", exact.predict_one_var, states, args.calls)
+        for n in (500, 1000, 2000):
+            full = GPLaw(sparse_threshold=None, exact_var_max_n=None).fit(X[:n], Y[:n], theta=theta)
+            timed(f"exact n={n} mean + exact variance (O(n²) triangular solve)", full.predict_one_var,
+                  states, min(args.calls, 10_000))
+        print(f"  → GPLaw computes the variance exactly on the hot path up to n = {exact.exact_var_max_n} "
+              "(exact_var_max_n); above, through a FITC companion on n_inducing points (O(m²)).")
+
+    if args.quick:
+        return
+    print("\n== sparse GP: n = 50,000, m = 300 inducing points (k-means), FITC ==")
+    Xb, Yb = sample(50_000, rng)
+    t0 = time.perf_counter()
+    sparse = GPLaw(n_inducing=300).fit(Xb, Yb)
+    fit_s = time.perf_counter() - t0
+    sparse.heldout_error(Xt, Yt_true)
+    ss = sparse.summary()
+    print(f"  fit (hyperparameters on 1,000 points + k-means + FITC on 50,000): {fit_s:.2f} s; mode "
+          f"{ss['mode']}, held-out nRMSE " + ", ".join(f"{v:.4f}" for v in ss["heldout_nrmse"]))
+    with single_thread():
+        timed("sparse m=300, mean only", sparse.predict_one, states, args.calls)
+        t = timed("sparse m=300, mean + variance (predict_one_var)", sparse.predict_one_var, states, args.calls)
+        p99 = np.percentile(t, 99) * 1e6
+        print(f"  target p99 ≤ 30 µs: {'met' if p99 <= 30 else 'NOT met'} ({p99:.2f} µs)")
+    print(f"\nload average at the end: {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
