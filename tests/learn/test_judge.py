@@ -86,6 +86,12 @@ def test_relabelling_a_segment_replaces_its_row():
     assert len(j.y_) == 30
     np.testing.assert_array_equal(j.y_[:3], ~y[:3])
     np.testing.assert_array_equal(j.y_[3:], y[3:])
+    extra, y_extra = segments("P2", 2, 21)
+    j.revise([extra[0], extra[1], extra[0]], [True, False, False])      # the last word on a segment counts
+    assert len(j.y_) == 32 and list(j.y_[30:]) == [False, False]
+    diverged = dataclasses.replace(extra[1], source="trial_9", values=extra[1].values * np.nan)
+    with pytest.raises(InvalidInput, match=r"trial_9\[0:"):
+        j.revise([diverged], [False])
 
 
 def test_degenerate_label_sets():

@@ -89,6 +89,10 @@ class Judge(BaseEstimator):
         return self._fit_rows(X, np.asarray(y, dtype=bool), keys)
 
     def _fit_rows(self, X: np.ndarray, y: np.ndarray, keys: list[Key]) -> Judge:
+        bad = [f"{k[0]}[{k[1]}:{k[2]}]" for k, row in zip(keys, X) if not np.all(np.isfinite(row))]
+        if bad:
+            raise InvalidInput(f"segment(s) with non-finite values cannot train the judge of {self.place}: "
+                               f"{', '.join(bad[:5])}{' …' if len(bad) > 5 else ''}", element=f"judge {self.place}")
         self.feature_names_ = feature_names(self.variables)
         self.X_, self.y_, self.keys_ = X, y, list(keys)
         sets = self.feature_sets if self.feature_sets is not None else FEATURE_SETS
@@ -113,14 +117,17 @@ class Judge(BaseEstimator):
         add_X, add_y, add_k = [], [], []
         for seg, row, lab in zip(segments, new_X, y):
             k = _key(seg)
-            if k in index:
-                X[index[k]], yy[index[k]] = row, bool(lab)
-            else:
+            i = index.get(k)
+            if i is None:
                 add_X.append(row)
                 add_y.append(bool(lab))
                 add_k.append(k)
                 if k != ("", 0, 0):
                     index[k] = len(keys) + len(add_k) - 1
+            elif i < len(keys):
+                X[i], yy[i] = row, bool(lab)
+            else:
+                add_X[i - len(keys)], add_y[i - len(keys)] = row, bool(lab)
         if add_X:
             X = np.concatenate([X, np.stack(add_X)])
             yy = np.concatenate([yy, np.asarray(add_y, dtype=bool)])
