@@ -40,6 +40,13 @@ class InverseModel(Protocol):
     def torques(self, obs: np.ndarray, command: np.ndarray) -> np.ndarray: ...
 
 
+class Perturbation(Protocol):
+    """The experimenter acting on the env during a trial (not the robot: it reads the net's state
+    only to decide *when*, as a person pushing a balanced pendulum watches for it to balance)."""
+
+    def __call__(self, tick: int, runner: NetRunner, env: gym.Env) -> None: ...
+
+
 class Executor:
     """Runs trials of one net version with its laws on one env.
 
@@ -87,8 +94,13 @@ class Executor:
         self.saturator = Saturator(apn.safety, self.cmd_names, slots, self.dt, torque_low, torque_high)
 
     def run(self, seed: int, options: Mapping[str, Any] | None = None, max_duration: float | None = None,
-            qpos_every: int = 0) -> Trace:
-        """One trial from the initial marking; ``qpos_every`` > 0 keeps simulator poses for a video."""
+            qpos_every: int = 0, perturb: Perturbation | None = None) -> Trace:
+        """One trial from the initial marking.
+
+        ``qpos_every`` > 0 keeps simulator poses every that many ticks for a video. ``perturb`` is
+        the experimenter's hand (e.g. a push when the skill has balanced for a while): called every
+        tick with the tick, the net's runner and the env, before the env steps.
+        """
         env, runner, sat = self.env, self.runner, self.saturator
         runner.rng = np.random.default_rng([seed, 2])
         runner.reset()
@@ -149,6 +161,8 @@ class Executor:
                 action = sat.torque(inverse.torques(obs, np.asarray(cmd)), k)
             else:
                 action = np.asarray(cmd)
+            if perturb is not None:
+                perturb(k, runner, env)
             obs, _, terminated, truncated, info = env.step(action)
             if terminated:
                 outcome = "diverged" if info.get("diverged", True) else "failure"

@@ -1,0 +1,180 @@
+"""Fitting a skill's learned parts from the demonstrations: laws, judges, place regions.
+
+* **Laws** (demonstration): one :class:`~.gp.GPLaw` per law of the skill, on the samples in which
+  the mentor executed a transition run by that law, from segments the mentor labelled success only.
+  Held-out error is measured on whole held-out demonstrations (samples within a demo are
+  correlated, so a random split of samples would flatter the law).
+* **Judges** (evaluation): one :class:`~.judge.Judge` per place with ``judge`` variables, on the
+  mentor's segment labels (through the label store, so later labels revise them).
+* **Regions**: the states seen while each place held the mentor's token, in the union of the
+  judged variables (the variables the mentor's places are defined by).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..demos.episode import Episode
+from ..petri.net import APN
+from .features import Segment
+from .gp import GPLaw
+from .judge import Judge
+from .labels import LabelRecord, LabelStore, records_from_episode
+from .region import PlaceRegions
+from .views import law_data, place_samples, token_place, value_matrix
+
+Progress = Callable[[str], None]
+
+
+def demo_source(i: int) -> str:
+    """The label-store id of demonstration ``i`` (the dataset's ``demo_<i>``)."""
+    return f"demo_{i}"
+
+
+def split_episodes(n: int, heldout: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of training and held-out demonstrations (at least one of each when n >= 2)."""
+    rng = np.random.default_rng(seed)
+    perm = rng.permutation(n)
+    k = int(round(heldout * n))
+    k = min(max(k, 1 if n >= 2 and heldout > 0 else 0), n - 1) if n >= 2 else 0
+    return np.sort(perm[k:]), np.sort(perm[:k])
+
+
+@dataclass
+class LawSettings:
+    """GP settings for the laws (see :class:`~.gp.GPLaw`)."""
+
+    n_hyper: int = 1000
+    n_restarts: int = 1
+    sparse_threshold: int | None = 3000
+    n_inducing: int = 300
+    max_train: int = 20000           # a random subset above this (the sparse posterior does not need more)
+
+
+def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool = True,
+            heldout: float = 0.2, seed: int = 0, settings: LawSettings | None = None) -> tuple[GPLaw, dict[str, Any]]:
+    """Fit one law; returns the law (refit on all its demos) and a summary with held-out NRMSE."""
+    s = settings or LawSettings()
+    data = law_data(apn, episodes, law, success_only=success_only)
+    if len(data.X) < 20:
+        raise ValueError(f"law {law}: only {len(data.X)} samples from {'successful ' if success_only else ''}"
+                         f"segments; record more demonstrations")
+    rng = np.random.default_rng(seed)
+    spec = apn.laws[law]
+
+    def make() -> GPLaw:
+        return GPLaw(n_hyper=s.n_hyper, n_restarts=s.n_restarts, sparse_threshold=s.sparse_threshold,
+                     n_inducing=s.n_inducing, random_state=seed, input_names=tuple(spec.inputs),
+                     output_names=tuple(spec.outputs))
+
+    def subset(idx: np.ndarray) -> np.ndarray:
+        return idx if len(idx) <= s.max_train else np.sort(rng.choice(idx, s.max_train, replace=False))
+
+    demos = np.unique(data.episode)
+    summary: dict[str, Any] = {"n": int(len(data.X)), "demos": int(len(demos)), "success_only": success_only}
+    if len(demos) >= 2 and heldout > 0:
+        tr_d, te_d = split_episodes(len(demos), heldout, seed)
+        tr = np.flatnonzero(np.isin(data.episode, demos[tr_d]))
+        te = np.flatnonzero(np.isin(data.episode, demos[te_d]))
+        probe = make().fit(data.X[subset(tr)], data.Y[subset(tr)])
+        pred = probe.predict(data.X[te])
+        err = np.sqrt(np.mean((pred - data.Y[te]) ** 2, axis=0)) / np.maximum(data.Y[te].std(axis=0), 1e-12)
+        summary["heldout_nrmse"] = float(err.max())
+        summary["heldout_samples"] = int(len(te))
+    law_model = make().fit(data.X[subset(np.arange(len(data.X)))], data.Y[subset(np.arange(len(data.X)))])
+    info = law_model.summary()
+    summary.update(mode=info["mode"], n_fit=info["n"], n_inducing=info["n_inducing"],
+                   length_scales={k: round(v, 4) for k, v in info["length_scale"].items()},
+                   signal_std=round(float(info["sigma_f"]), 4), noise_std=round(float(info["noise"]), 4))
+    return law_model, summary
+
+
+def mentor_records(apn: APN, episodes: Sequence[Episode]) -> list[LabelRecord]:
+    """The mentor's segment labels of the demonstrations as label-store records."""
+    out = []
+    for i, ep in enumerate(episodes):
+        out += records_from_episode(demo_source(i), ep.labels, lambda t: token_place(apn, t))
+    return out
+
+
+def judged_places(apn: APN) -> dict[str, tuple[str, ...]]:
+    """Places that have a judge, with the variables it reads."""
+    return {p.id: p.judge for p in apn.places if p.judge and not p.final}
+
+
+def demo_segments(apn: APN, episodes: Sequence[Episode], records: Sequence[LabelRecord], variables: Sequence[str]
+                  ) -> tuple[list[Segment], np.ndarray]:
+    """The segments label records point at (demonstrations only), in the skill's variables."""
+    cache: dict[int, np.ndarray] = {}
+    segs, y = [], []
+    for r in records:
+        if not r.source.startswith("demo_"):
+            continue
+        i = int(r.source.split("_")[1])
+        if i not in cache:
+            cache[i] = value_matrix(apn, episodes[i], variables)
+        segs.append(Segment(cache[i][r.start:r.end], tuple(variables), episodes[i].dt, r.source, r.start, r.end,
+                            r.transition))
+        y.append(r.success)
+    return segs, np.asarray(y, dtype=bool)
+
+
+def fit_judge(apn: APN, episodes: Sequence[Episode], store: LabelStore, place: str, seed: int = 0,
+              heldout: float = 0.25) -> tuple[Judge, dict[str, Any]]:
+    """Fit the judge of ``place`` on the store's effective mentor labels; held-out accuracy on a
+    split by demonstration."""
+    variables = judged_places(apn)[place]
+    records = [r for r in store.effective(place=place) if r.source.startswith("demo_")]
+    segs, y = demo_segments(apn, episodes, records, variables)
+    summary: dict[str, Any] = {"segments": int(len(y)), "success_labels": int(y.sum())}
+    if len(y) < 4:
+        raise ValueError(f"judge of {place}: only {len(y)} labelled segments")
+    if heldout > 0 and len(episodes) >= 4:
+        tr_d, te_d = split_episodes(len(episodes), heldout, seed)
+        te_src = {demo_source(int(i)) for i in te_d}
+        te = np.array([s.source in te_src for s in segs])
+        if te.any() and (~te).any() and len(set(y[~te])) == 2:
+            probe = Judge(place=place, variables=variables, random_state=seed).fit(
+                [s for s, t in zip(segs, te) if not t], y[~te])
+            pred = probe.predict([s for s, t in zip(segs, te) if t])
+            summary["heldout_accuracy"] = float(np.mean(pred == y[te]))
+            summary["heldout_segments"] = int(te.sum())
+    judge = Judge(place=place, variables=variables, random_state=seed).fit(segs, y)
+    summary["kernel"] = judge.best_kernel_
+    best = judge.cv_scores_.get(judge.best_kernel_, {})
+    summary["cv_score"] = best.get("score") if isinstance(best, dict) else best
+    summary["cv_scores"] = {k: (v.get("score") if isinstance(v, dict) else v) for k, v in judge.cv_scores_.items()}
+    return judge, summary
+
+
+def region_variables(apn: APN) -> tuple[str, ...]:
+    """The variables place regions are modelled in: the union of the places' judge variables."""
+    out: list[str] = []
+    for p in apn.places:
+        for v in p.judge:
+            if v not in out:
+                out.append(v)
+    return tuple(out)
+
+
+def fit_regions(apn: APN, episodes: Sequence[Episode], seed: int = 0) -> tuple[PlaceRegions, dict[str, Any]]:
+    """Place regions from the states seen while each place held the mentor's token (successful segments)."""
+    names = region_variables(apn)
+    samples = place_samples(apn, episodes, names, success_only=True)
+    samples = {p: X for p, X in samples.items() if len(X) >= 10}
+    regions = PlaceRegions(input_names=names, random_state=seed).fit(samples)
+    return regions, {"variables": list(names), "places": {p: int(len(X)) for p, X in samples.items()},
+                     "components": {p: int(k) for p, k in regions.components_.items()}}
+
+
+@dataclass
+class TrainingReport:
+    """What :func:`train` fitted and measured."""
+
+    laws: dict[str, dict[str, Any]] = field(default_factory=dict)
+    judges: dict[str, dict[str, Any]] = field(default_factory=dict)
+    regions: dict[str, Any] = field(default_factory=dict)

@@ -1,0 +1,247 @@
+"""A skill model directory: everything the robot has learned about one skill, pickle-free.
+
+::
+
+    MODEL_DIR/
+      skill.yaml             the mentor's definition, copied once and never written again
+      skill.history.jsonl    the robot's revisions of it (JSON lines)
+      model.json             manifest: skill, env, the demonstrations it learned from, summaries
+      laws/<law>.npz         GP control laws
+      judges/<place>.npz     SVM judges
+      conditions/<name>.npz  learned conditions (switch SVMs, region conditions)
+      regions.npz            place regions
+      inverse_model.npz      the auxiliary inverse model (optional)
+      labels.jsonl           every label: the mentor's and later ones
+
+Everything is ``.npz`` + JSON, loaded with ``allow_pickle=False``; a shared model directory can
+never run code.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import os
+import shutil
+from collections.abc import Mapping, Sequence
+from functools import cached_property
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from .demos.dataset import read_dataset
+from .demos.episode import Episode
+from .errors import InvalidInput
+from .io import read_json, write_json
+from .learn.condition import LearnedCondition, load_condition
+from .learn.gp import GPLaw
+from .learn.judge import Judge, TrialGrade, grade_episode
+from .learn.labels import LabelStore
+from .learn.region import PlaceRegions
+from .learn.views import switch_data, token_place
+from .petri.net import APN
+from .petri.revision import History
+from .petri.skillfile import load_skill, resolve_skill
+from .runtime.executor import Executor
+from .runtime.trace import Trace
+
+MANIFEST_VERSION = 1
+
+
+class SkillModel:
+    """Opens (or creates with :meth:`create`) a model directory; pieces load lazily."""
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
+        if not (self.path / "skill.yaml").exists():
+            raise InvalidInput("not a skill model directory (no skill.yaml)", file=str(self.path))
+        self.history = History(self.path / "skill.yaml", self.path / "skill.history.jsonl")
+
+    @classmethod
+    def create(cls, path: str | os.PathLike, skill: str | os.PathLike, demos: str | os.PathLike | None = None,
+               env_id: str | None = None, env_kwargs: Mapping[str, Any] | None = None) -> SkillModel:
+        """Start a model directory from a skill file (copied) and, optionally, a demonstration file."""
+        path = Path(path)
+        src = resolve_skill(skill)
+        apn = load_skill(src)                          # validate before writing anything
+        path.mkdir(parents=True, exist_ok=True)
+        dst = path / "skill.yaml"
+        if dst.exists():
+            if dst.read_bytes() != src.read_bytes():
+                raise InvalidInput("holds a different skill definition; use a new directory", file=str(dst))
+        else:
+            shutil.copyfile(src, dst)
+        manifest = {"format_version": MANIFEST_VERSION, "skill": apn.name,
+                    "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+                    "env": env_id or apn.env, "env_kwargs": dict(env_kwargs or {}),
+                    "demos": str(Path(demos).resolve()) if demos else None, "training": {}}
+        old = path / "model.json"
+        if old.exists():
+            manifest = {**read_json(old), **{k: v for k, v in manifest.items() if v is not None and k != "created"}}
+        write_json(old, manifest)
+        return cls(path)
+
+    # -- manifest ---------------------------------------------------------------------------------
+    @property
+    def manifest(self) -> dict[str, Any]:
+        m = read_json(self.path / "model.json", "model manifest")
+        if m.get("format_version") != MANIFEST_VERSION:
+            raise InvalidInput(f"manifest version {m.get('format_version')!r}, expected {MANIFEST_VERSION}",
+                               file=str(self.path / "model.json"))
+        return m
+
+    def update_manifest(self, **items: Any) -> None:
+        m = self.manifest
+        for k, v in items.items():
+            if isinstance(v, dict) and isinstance(m.get(k), dict):
+                m[k] = {**m[k], **v}
+            else:
+                m[k] = v
+        write_json(self.path / "model.json", m)
+
+    # -- the net ----------------------------------------------------------------------------------
+    @property
+    def apn(self) -> APN:
+        """The latest version of the net (original + revisions)."""
+        return self.history.latest()
+
+    @property
+    def version(self) -> int:
+        return len(self.history.revisions())
+
+    # -- demonstrations ---------------------------------------------------------------------------
+    @cached_property
+    def episodes(self) -> list[Episode]:
+        demos = self.manifest.get("demos")
+        if not demos:
+            raise InvalidInput("the model has no demonstration file", file=str(self.path / "model.json"))
+        return list(read_dataset(demos))
+
+    # -- learned pieces ---------------------------------------------------------------------------
+    def save_law(self, name: str, law: GPLaw) -> None:
+        law.save(self.path / "laws" / f"{name}.npz")
+
+    def laws(self) -> dict[str, GPLaw]:
+        return {p.stem: GPLaw.load(p) for p in sorted((self.path / "laws").glob("*.npz"))}
+
+    def save_judge(self, place: str, judge: Judge) -> None:
+        judge.save(self.path / "judges" / f"{place}.npz")
+
+    def judges(self) -> dict[str, Judge]:
+        apn = self.apn
+        out = {}
+        for p in sorted((self.path / "judges").glob("*.npz")):
+            if p.stem in apn.place_ids:
+                out[p.stem] = Judge.load(p, variables=apn.place(p.stem).judge or None)
+        return out
+
+    def save_condition(self, name: str, model: Any) -> None:
+        model.save(self.path / "conditions" / f"{name}.npz")
+
+    def conditions(self) -> dict[str, Any]:
+        return {p.stem: load_condition(p) for p in sorted((self.path / "conditions").glob("*.npz"))}
+
+    def save_regions(self, regions: PlaceRegions) -> None:
+        regions.save(self.path / "regions.npz")
+
+    def regions(self) -> PlaceRegions | None:
+        p = self.path / "regions.npz"
+        return PlaceRegions.load(p) if p.exists() else None
+
+    @property
+    def labels(self) -> LabelStore:
+        return LabelStore(self.path / "labels.jsonl")
+
+    def inverse_model(self):
+        from .learn.inverse import InverseDynamicsModel
+        p = self.path / "inverse_model.npz"
+        return InverseDynamicsModel.load(p) if p.exists() else None
+
+    # -- running ----------------------------------------------------------------------------------
+    def make_env(self, **overrides: Any) -> gym.Env:
+        """The env the skill runs on (the manifest's id and arguments; ``overrides`` win)."""
+        import multiform.envs  # noqa: F401  (registers the envs)
+        m = self.manifest
+        return gym.make(m["env"], **{**m.get("env_kwargs", {}), **overrides})
+
+    def executor(self, env: gym.Env, apn: APN | None = None, use_inverse_model: bool = True) -> Executor:
+        """An executor for ``apn`` (default: the latest net) with this model's laws and conditions."""
+        apn = apn or self.apn
+        inverse = self.inverse_model() if use_inverse_model else None
+        return Executor(apn, env, self.laws(), self.conditions(), inverse, net_version=self.version)
+
+    def grade(self, trace: Trace, source: str, judges: Mapping[str, Judge] | None = None) -> TrialGrade:
+        """The judges' grades of a trial: every sub-procedure and the whole trial."""
+        apn = self.apn
+        judges = self.judges() if judges is None else judges
+        if trace.outcome == "diverged" or not judges:
+            return TrialGrade(score=0.0)
+        return grade_episode(trace.to_episode(), judges, lambda t: token_place(apn, t), source=source,
+                             labels=self.labels.effective(sources=[source]))
+
+
+class ModelLearners:
+    """The :class:`~multiform.adapt.repair.Learners` of a model: fit from its demonstrations and
+    regions, save into ``conditions/``, return the name."""
+
+    def __init__(self, model: SkillModel, seed: int = 0):
+        self.model = model
+        self.seed = seed
+
+    def _fresh(self, stem: str) -> str:
+        used = {p.stem for p in (self.model.path / "conditions").glob("*.npz")}
+        name, k = stem, 1
+        while name in used:
+            k += 1
+            name = f"{stem}_{k}"
+        return name
+
+    def switch_variables(self, apn: APN, transition: str) -> tuple[str, ...]:
+        """The variables a switch condition reads: the judged variables of the place it leaves."""
+        src = list(apn.transition(transition).inputs)
+        names: list[str] = []
+        for p in src:
+            for v in apn.place(p).judge:
+                if v not in names:
+                    names.append(v)
+        return tuple(names) or tuple(apn.variables)
+
+    def has_switches(self, apn: APN, transition: str) -> bool:
+        names = self.switch_variables(apn, transition)
+        d = switch_data(apn, self.model.episodes, transition, names)
+        return len(d.switch_states) >= 3 and len(d.negatives) >= 10
+
+    def switch_condition(self, apn: APN, transition: str) -> tuple[str, dict[str, Any]]:
+        names = self.switch_variables(apn, transition)
+        d = switch_data(apn, self.model.episodes, transition, names)
+        cond = LearnedCondition(input_names=names, random_state=self.seed).fit_switches(d.positives, d.negatives)
+        name = self._fresh(f"{transition}_switch")
+        self.model.save_condition(name, cond)
+        hit = float(np.mean(cond.holds(d.switch_states))) if len(d.switch_states) else float("nan")
+        fp = float(np.mean(cond.holds(d.negatives))) if len(d.negatives) else float("nan")
+        return name, {"model": name, "variables": list(names), "mentor_switches": int(len(d.switch_states)),
+                      "positives": int(len(d.positives)), "negatives": int(len(d.negatives)),
+                      "support_vectors": int(cond.n_support_), "holds_at_switches": round(hit, 4),
+                      "holds_far_from_switches": round(fp, 4)}
+
+    def _regions(self) -> PlaceRegions:
+        r = self.model.regions()
+        if r is None:
+            raise InvalidInput("the model has no place regions (train first)", file=str(self.model.path))
+        return r
+
+    def region_condition(self, apn: APN, into: str, away_from: str) -> tuple[str, dict[str, Any]]:
+        regions = self._regions()
+        other = away_from if away_from in regions.places_ else None
+        cond = regions.condition(into, other)
+        name = self._fresh(f"in_{into}")
+        self.model.save_condition(name, cond)
+        return name, {"model": name, "variables": list(regions.input_names), "into": into, "rather_than": other}
+
+    def outside_condition(self, apn: APN, place: str, states: Sequence[Sequence[float]]) -> tuple[str, dict[str, Any]]:
+        regions = self._regions()
+        cond = regions.outside_condition()
+        name = self._fresh(f"outside_{place}")
+        self.model.save_condition(name, cond)
+        return name, {"model": name, "variables": list(regions.input_names), "examples": len(states)}
