@@ -1,0 +1,131 @@
+"""Videos of demonstrations and trials: render simulator poses and write them to MP4.
+
+A trial or demo keeps joint-position snapshots (``qpos``), not images; :func:`render_qpos` turns
+them into frames with MuJoCo's offscreen renderer (``MUJOCO_GL=egl`` works without a display or
+GPU), and :func:`write_mp4` encodes frames with imageio-ffmpeg, atomically (a temporary file in the
+same directory, renamed when complete). :func:`replay` rebuilds the snapshots of a recorded
+episode by replaying its commands from its seed.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+from ..demos.episode import Episode
+from ..io import atomic_path
+
+
+def write_mp4(frames: Iterable[np.ndarray], path: str | os.PathLike, fps: float = 30.0, quality: int = 7) -> Path:
+    """Encode ``frames`` (H×W×3 uint8, all the same size) as an H.264 MP4 at ``path``, atomically.
+
+    ``frames`` may be a generator; it is consumed once. Returns the path. Raises ``ValueError`` when
+    there are no frames or they are not RGB images of one size.
+    """
+    import imageio_ffmpeg
+
+    path = Path(path)
+    it = iter(frames)
+    first = next(it, None)
+    if first is None:
+        raise ValueError("no frames to write")
+    first = _check_frame(first, None)
+    h, w = first.shape[:2]
+    with atomic_path(path, suffix=".mp4") as tmp:
+        writer = imageio_ffmpeg.write_frames(str(tmp), (w, h), fps=float(fps), codec="libx264",
+                                             pix_fmt_out="yuv420p", quality=quality, macro_block_size=2,
+                                             ffmpeg_log_level="error")
+        writer.send(None)
+        try:
+            writer.send(np.ascontiguousarray(first))
+            for frame in it:
+                writer.send(np.ascontiguousarray(_check_frame(frame, (h, w))))
+        finally:
+            writer.close()
+    return path
+
+
+def _check_frame(frame: Any, size: tuple[int, int] | None) -> np.ndarray:
+    a = np.asarray(frame)
+    if a.ndim != 3 or a.shape[2] != 3 or a.dtype != np.uint8:
+        raise ValueError(f"a frame must be an H×W×3 uint8 image, got shape {a.shape} dtype {a.dtype}")
+    if a.shape[0] % 2 or a.shape[1] % 2:
+        raise ValueError(f"frame size {a.shape[1]}×{a.shape[0]} must be even for H.264")
+    if size is not None and a.shape[:2] != size:
+        raise ValueError(f"frame size changed from {size[1]}×{size[0]} to {a.shape[1]}×{a.shape[0]}")
+    return a
+
+
+def render_qpos(env: gym.Env, qpos: Iterable[np.ndarray], camera: str | None = None,
+                width: int = 480, height: int = 360) -> Iterator[np.ndarray]:
+    """Frames of ``env``'s scene posed at each ``qpos`` snapshot (set qpos, ``mj_forward``, render).
+
+    A generator: the env's simulator state is saved first and restored when it is exhausted or
+    closed. Without ``camera``, an env created with ``render_mode="rgb_array"`` renders its own view;
+    otherwise a renderer of ``width``×``height`` uses the named camera (or MuJoCo's default one).
+    Snapshots must come from an episode with the same model parameters as the env has now (e.g.
+    the pendulum's length): reset the env with that episode's seed and options first.
+    """
+    base = env.unwrapped
+    m, d = base.model, base.data
+    saved = (d.qpos.copy(), d.qvel.copy(), d.act.copy(), float(d.time))
+    own = camera is not None or getattr(base, "render_mode", None) != "rgb_array"
+    renderer = mujoco.Renderer(m, height, width) if own else None
+    try:
+        for q in qpos:
+            d.qpos[:] = q
+            d.qvel[:] = 0.0
+            mujoco.mj_forward(m, d)
+            if renderer is not None:
+                renderer.update_scene(d, camera=camera if camera is not None else -1)
+                yield renderer.render().copy()
+            else:
+                yield base.render()
+    finally:
+        d.qpos[:], d.qvel[:], d.act[:] = saved[0], saved[1], saved[2]
+        d.time = saved[3]
+        mujoco.mj_forward(m, d)
+        if renderer is not None:
+            renderer.close()
+
+
+def replay(env: gym.Env, episode: Episode, qpos_every: int = 0) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Replay ``episode``'s commands on ``env`` from its seed and reset options.
+
+    Returns the observations seen (one row per command, as recorded) and, with ``qpos_every`` > 0,
+    a ``qpos`` snapshot every that many steps (for :func:`render_qpos`). A deterministic env
+    reproduces the recorded observations exactly.
+    """
+    base = env.unwrapped
+    obs, _ = env.reset(seed=episode.seed, options=dict(episode.reset_options) or None)
+    rows = np.empty_like(episode.obs)
+    snaps: list[np.ndarray] = []
+    n = 0
+    for k, cmd in enumerate(episode.actions):
+        rows[k] = obs
+        n = k + 1
+        if qpos_every and k % qpos_every == 0:
+            snaps.append(base.data.qpos.copy())
+        obs, _, terminated, truncated, _ = env.step(cmd)
+        if terminated or truncated:
+            break
+    return rows[:n], snaps
+
+
+def episode_video(env: gym.Env, episode: Episode, path: str | os.PathLike, fps: float = 25.0,
+                  camera: str | None = None, width: int = 480, height: int = 360) -> Path:
+    """Write an MP4 of a recorded ``episode`` (replayed on ``env``) at ``fps`` frames per second."""
+    every = max(1, int(round(1.0 / (fps * episode.dt))))
+    _, snaps = replay(env, episode, qpos_every=every)
+    return write_mp4(render_qpos(env, snaps, camera, width, height), path, fps=1.0 / (every * episode.dt))
+
+
+def frames_of(env: gym.Env, qpos: Sequence[np.ndarray], **kw: Any) -> list[np.ndarray]:
+    """All frames of :func:`render_qpos` as a list (for short clips and tests)."""
+    return list(render_qpos(env, qpos, **kw))
