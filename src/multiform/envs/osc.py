@@ -9,7 +9,8 @@ Split in two because the learned auxiliary inverse model (issue 4) later replace
    workspace centre.
 2. :func:`torques_for` — model-based inverse dynamics (computed torque): the site Jacobian ``J``,
    its time derivative, the joint-space mass matrix ``M`` and the bias forces (Coriolis, centrifugal,
-   gravity, from MuJoCo) give ``tau = M J^-1 (a - Jdot qdot) + bias``, clipped to the torque
+   gravity, from MuJoCo) and the joint damping give
+   ``tau = M J^-1 (a - Jdot qdot) + bias - passive``, clipped to the torque
    limits. With six joints and a six-dimensional task there is no null space; the home posture is
    far from singularities over the whole ±0.35 m stroke (smallest singular value of ``J`` ≥ 0.2).
    The pendulum's reaction on the flange (a few N) is left to the feedback.
@@ -131,6 +132,7 @@ class Workspace:
         self.site_pos = data.site_xpos[self.site]
         self.qvel = data.qvel
         self.bias6 = data.qfrc_bias[:6]
+        self.passive6 = data.qfrc_passive[:6]
 
 
 def torques_for(a6: np.ndarray, model: mujoco.MjModel, data: mujoco.MjData,
@@ -139,7 +141,8 @@ def torques_for(a6: np.ndarray, model: mujoco.MjModel, data: mujoco.MjData,
 
     ``data`` must hold the position- and velocity-dependent quantities of its current state
     (after ``mj_forward``, or ``mj_step1`` as the env does): site pose, ``qM``, ``qfrc_bias``,
-    ``cvel``. Only the six arm joints are actuated; the pendulum's coordinate gets no acceleration
+    ``qfrc_passive``, ``cvel``. The joints' own damping (``qfrc_passive``) is compensated, like an
+    identified friction model on a real arm. Only the six arm joints are actuated; the pendulum's coordinate gets no acceleration
     demand. The result is clipped to ``limits``. ``work`` (a :class:`Workspace` of this ``model``
     and ``data``) saves allocations on a 1 kHz path.
     """
@@ -155,6 +158,7 @@ def torques_for(a6: np.ndarray, model: mujoco.MjModel, data: mujoco.MjData,
     w.qacc6[:] = qacc
     mujoco.mj_mulM(model, data, w.out, w.qacc)
     tau = np.add(w.out6, w.bias6, out=w.tau)
+    tau -= w.passive6
     if limits is TORQUE_LIMITS:
         return np.minimum(np.maximum(tau, _NEG_LIMITS), TORQUE_LIMITS)
     return np.minimum(np.maximum(tau, -limits), limits)
