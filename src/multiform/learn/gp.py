@@ -128,8 +128,8 @@ class GPLaw(BaseEstimator, RegressorMixin):
     exact_var_max_n: above this many points an exact GP's variance goes through the sparse
         companion (None: always exact).
     input_names, output_names: variable names stored with the law (checked against the data).
-    n_threads: BLAS threads while fitting. 1 by default: on a busy 2-core machine OpenBLAS with 2
-        threads made a 1,000-point Cholesky 30× slower than with 1.
+    n_threads: BLAS and OpenMP threads while fitting (None: leave as is). 1 by default: on a busy
+        2-core machine OpenBLAS with 2 threads made a 1,000-point Cholesky 30× slower than with 1.
     random_state: seed for the hyperparameter subset, restarts and k-means.
     """
 
@@ -160,7 +160,7 @@ class GPLaw(BaseEstimator, RegressorMixin):
         if self.n_threads is None:
             return self._fit(X, y, theta)
         from threadpoolctl import threadpool_limits
-        with threadpool_limits(limits=self.n_threads, user_api="blas"):
+        with threadpool_limits(limits=self.n_threads):
             return self._fit(X, y, theta)
 
     def _check_params(self, d: int, p: int) -> None:
