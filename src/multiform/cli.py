@@ -96,6 +96,113 @@ def cmd_net_import(args: argparse.Namespace) -> int:
     return 0
 
 
+# -- demonstrations, training, practice, the main job ---------------------------------------------
+
+def _bar(total: int, desc: str):
+    from tqdm import tqdm
+    return tqdm(total=total, desc=desc, dynamic_ncols=True)
+
+
+def cmd_record(args: argparse.Namespace) -> int:
+    from .demos.dataset import write_dataset
+    from .demos.record import record_many
+    from .tasks import get_task
+    task = get_task(args.task)
+    seeds = [args.seed * 100_000 + i for i in range(args.demos)]
+    with _bar(len(seeds), f"recording {args.task} demos") as bar:
+        eps = record_many(args.task, seeds, task.DEMO_ENV_KWARGS, workers=args.workers,
+                          progress=lambda i, n: bar.update(1))
+    write_dataset(args.out, eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)
+    ok = sum(e.outcome == "success" for e in eps)
+    print(f"wrote {args.out}: {len(eps)} demos, the mentor succeeded in {ok} ({100 * ok / len(eps):.0f} %)")
+    return 0
+
+
+def cmd_demos_info(args: argparse.Namespace) -> int:
+    import json
+
+    from .demos.dataset import read_dataset
+    s = read_dataset(args.demos).summary()
+    if args.json:
+        print(json.dumps(s, indent=2))
+        return 0
+    d = s["duration_s"]
+    print(f"{s['file']}: skill {s['skill']}, env {s['env']}")
+    print(f"demos: {s['demos']} ({s['success']} successful, {100 * s['success_fraction']:.0f} %)")
+    print(f"duration: {d['total']:.1f} s in all, mean {d['mean']:.1f} s, min {d['min']:.1f} s, max {d['max']:.1f} s")
+    print(f"samples: {s['samples']}; labelled segments: {s['segments']} ({s['segments_success']} success)")
+    print("samples per transition: " + ", ".join(f"{k} {v}" for k, v in s["samples_per_transition"].items()))
+    return 0
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from .demos.dataset import read_dataset
+    from .job import train_model
+    from .model import SkillModel
+    from .tasks import TASKS, get_task
+    ds = read_dataset(args.demos)
+    model = SkillModel.create(args.out, args.skill, args.demos, ds.env_name, ds.env_kwargs)
+    inverse = None
+    if args.inverse_model:
+        task = next((get_task(t) for t in TASKS if get_task(t).ENV_ID == ds.env_name), None)
+        if task is None or not hasattr(task, "train_inverse_model"):
+            print(f"no inverse-model trainer for {ds.env_name}", file=sys.stderr)
+            return 1
+        inverse = task.train_inverse_model
+        model.update_manifest(env_kwargs=task.robot_env_kwargs(True))
+    print(f"training {model.apn.name} from {len(ds)} demos into {model.path}")
+    train_model(model, seed=args.seed, inverse_trainer=inverse)
+    print(f"model ready: {model.path}")
+    return 0
+
+
+def cmd_practice(args: argparse.Namespace) -> int:
+    from .adapt.practice import Practice, PracticeConfig
+    from .model import SkillModel
+    from .tasks import get_task
+    model = SkillModel(args.model)
+    task = get_task(args.task)
+    scen = {s["name"]: s for s in task.scenarios()}
+    if args.scenario not in scen:
+        print(f"unknown scenario {args.scenario!r}; {args.task} has: {', '.join(scen)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    sc = scen[args.scenario]
+    cfg = PracticeConfig(max_trials=args.max_trials, seed=args.seed + sc.get("seed", 0), **sc.get("config", {}))
+    practice = Practice(model, args.out or Path(args.model) / "practice" / args.scenario, cfg,
+                        options=sc["options"], perturb=sc.get("perturb"), name=sc["name"])
+
+    def show(state, trial):
+        mark = "ok  " if trial["success"] else "FAIL"
+        print(f"trial {trial['trial']:3d} v{trial['net_version']} {mark} {trial['outcome']:8s} "
+              f"judges {trial['judge_score']}  fired {' '.join(trial['fired'][:12])}"
+              + (" …" if len(trial["fired"]) > 12 else ""), flush=True)
+        if state.revisions and state.revisions[-1].get("after_trial") == trial["trial"]:
+            r = state.revisions[-1]
+            print(f"  revision {r['version']}: {r['operator']} {r['target']} — {r['reason']}", flush=True)
+
+    state = practice.run(progress=show, stop_after=args.stop_after)
+    print(f"{len(state.trials)} trials; {state.stop_reason or 'stopped'}")
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    from .job import Job, JobConfig
+    cfg = JobConfig(demos=args.demos, eval_trials=args.eval_trials, ablation_trials=args.ablation_trials,
+                    practice_max_trials=args.max_trials, workers=args.workers, seed=args.seed,
+                    videos=not args.no_video, inverse_model=not args.reference_controller)
+    m = Job(args.task, args.out, cfg).run()
+    sr = m["success_rate"]
+    print(f"success rate {100 * sr['rate']:.1f} % ({sr['successes']}/{sr['trials']}; 95 % CI "
+          f"{100 * sr['low']:.1f}-{100 * sr['high']:.1f} %); report: {Path(args.out) / 'report.html'}")
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from .report.page import build_report
+    print(f"wrote {build_report(args.run)}")
+    return 0
+
+
 # -- the parser ------------------------------------------------------------------------------------
 
 def build_parser() -> argparse.ArgumentParser:
@@ -145,6 +252,57 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("pnml")
     p.add_argument("--out", "-o")
     p.set_defaults(func=cmd_net_import)
+
+    p = sub.add_parser("record", help="record scripted-mentor demonstrations of a task (HDF5)")
+    p.add_argument("task", choices=["pendulum", "nunchaku"])
+    p.add_argument("--demos", type=int, default=40, help="number of demonstrations")
+    p.add_argument("--out", "-o", required=True, help="output .h5 file")
+    p.add_argument("--workers", type=int, default=2, help="processes")
+    p.add_argument("--seed", type=int, default=0)
+    p.set_defaults(func=cmd_record)
+
+    demos = sub.add_parser("demos", help="inspect demonstration files")
+    dsub = demos.add_subparsers(dest="demos_command", metavar="DEMOS_COMMAND", required=True)
+    p = dsub.add_parser("info", help="count, durations, success fraction, samples per transition")
+    p.add_argument("demos")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_demos_info)
+
+    p = sub.add_parser("train", help="fit laws, judges and regions of a skill from demonstrations")
+    p.add_argument("skill", help="skill file or bundled skill name")
+    p.add_argument("demos", help="demonstration file (.h5)")
+    p.add_argument("--out", "-o", required=True, help="model directory")
+    p.add_argument("--inverse-model", action="store_true", help="also learn the auxiliary inverse model")
+    p.add_argument("--seed", type=int, default=0)
+    p.set_defaults(func=cmd_train)
+
+    p = sub.add_parser("practice", help="practise a trained skill; repair the net on constant failure")
+    p.add_argument("model", help="model directory")
+    p.add_argument("--task", default="pendulum", choices=["pendulum", "nunchaku"])
+    p.add_argument("--scenario", default="a_strict", help="the task's practice scenario")
+    p.add_argument("--out", help="practice folder (default MODEL/practice/SCENARIO)")
+    p.add_argument("--max-trials", type=int, default=30)
+    p.add_argument("--stop-after", type=int, default=None, help="stop after this many trials (resume later)")
+    p.add_argument("--seed", type=int, default=0)
+    p.set_defaults(func=cmd_practice)
+
+    p = sub.add_parser("demo", help="the main job: record, train, practise with repair, evaluate, report")
+    p.add_argument("task", choices=["pendulum", "nunchaku"])
+    p.add_argument("--out", "-o", required=True, help="run folder")
+    p.add_argument("--demos", type=int, default=40)
+    p.add_argument("--eval-trials", type=int, default=200)
+    p.add_argument("--ablation-trials", type=int, default=100)
+    p.add_argument("--max-trials", type=int, default=30, help="practice trials per scenario at most")
+    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--no-video", action="store_true")
+    p.add_argument("--reference-controller", action="store_true",
+                   help="drive the arm with the env's model-based controller instead of the learned inverse model")
+    p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("report", help="rebuild a run folder's report.html from its metrics.json")
+    p.add_argument("run")
+    p.set_defaults(func=cmd_report)
     return parser
 
 

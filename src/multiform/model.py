@@ -39,7 +39,7 @@ from .learn.gp import GPLaw
 from .learn.judge import Judge, TrialGrade, grade_episode
 from .learn.labels import LabelStore
 from .learn.region import PlaceRegions
-from .learn.views import switch_data, token_place
+from .learn.views import place_episode, switch_data
 from .petri.net import APN
 from .petri.revision import History
 from .petri.skillfile import load_skill, resolve_skill
@@ -154,9 +154,12 @@ class SkillModel:
         return LabelStore(self.path / "labels.jsonl")
 
     def inverse_model(self):
-        from .learn.inverse import InverseDynamicsModel
+        """The learned inverse model, or None if the model has none (the env then takes commands)."""
         p = self.path / "inverse_model.npz"
-        return InverseDynamicsModel.load(p) if p.exists() else None
+        if not p.exists():
+            return None
+        from .learn.inverse import InverseDynamicsModel
+        return InverseDynamicsModel.load(p)
 
     # -- running ----------------------------------------------------------------------------------
     def make_env(self, **overrides: Any) -> gym.Env:
@@ -177,7 +180,7 @@ class SkillModel:
         judges = self.judges() if judges is None else judges
         if trace.outcome == "diverged" or not judges:
             return TrialGrade(score=0.0)
-        return grade_episode(trace.to_episode(), judges, lambda t: token_place(apn, t), source=source,
+        return grade_episode(place_episode(apn, trace.to_episode()), judges, lambda p: p, source=source,
                              labels=self.labels.effective(sources=[source]))
 
 

@@ -107,10 +107,14 @@ def diagnose(apn: APN, traces: Sequence[Trace], region_scores: RegionScorer | No
 
 
 def _exit(apn: APN, trial: int, tr: Trace, region_scores: RegionScorer, names: Sequence[str],
-          threshold: float) -> Exit | None:
-    """The first tick of the last stay in a non-final place at which the state left that place's region."""
+          threshold: float, max_lag: float = 2.0) -> Exit | None:
+    """Where the state left its place's region for good, shortly before the trial failed from that place
+    (a disturbance throwing the state out), or None (the failure had another cause, e.g. a timeout)."""
     last = tr.firings[-1]
-    src = list(apn.transition(last.transition).inputs) if last.transition in apn.transition_ids else []
+    if tr.outcome != "failure" or last.transition not in apn.transition_ids or \
+            not any(apn.place(p).final == "failure" for p in apn.transition(last.transition).outputs):
+        return None
+    src = list(apn.transition(last.transition).inputs)
     if not src:
         return None
     place = src[0]
@@ -132,15 +136,17 @@ def _exit(apn: APN, trial: int, tr: Trace, region_scores: RegionScorer, names: S
     if place not in scores:
         return None
     inside = scores[place] >= threshold
-    # the state must have been inside first, then left: the first outside tick after being inside
-    first_in = np.flatnonzero(inside)
-    if len(first_in) == 0:
+    # The state must have been inside, then left for good shortly before the failure: the last
+    # out-of-region stretch runs to the end, began within `max_lag` s of it, and inside came first.
+    if inside[-1]:
         return None
-    out_after = np.flatnonzero(~inside[first_in[0]:])
-    if len(out_after) == 0:
+    ins = np.flatnonzero(inside)
+    if len(ins) == 0:
         return None
-    k = first_in[0] + out_after[0]
-    # the state a few ticks after it left, once the push has shown its direction
+    k = int(ins[-1]) + 1
+    if (len(states) - k) * tr.dt > max_lag:
+        return None
+    # the state a little after it left, once the push has shown its direction
     k = min(k + int(round(0.05 / tr.dt)), len(states) - 1)
     s = {p: float(v[k]) for p, v in scores.items()}
     others = {p: v for p, v in s.items() if p != place}

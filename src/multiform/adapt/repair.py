@@ -103,6 +103,8 @@ def relearn_condition(apn: APN, d: Diagnosis, learners: Learners) -> Repair | No
         if tid not in d.never_fired:
             continue
         t = apn.transition(tid)
+        if t.condition.is_learned:      # already learned from the demonstrations; relearning gives the same
+            continue
         if not _leads_to_success(apn, tid) or not _only_way(apn, tid):
             continue
         if not learners.has_switches(apn, tid):

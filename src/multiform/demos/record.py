@@ -42,3 +42,51 @@ def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, A
     episode.labels = list(mentor.label(episode))
     episode.outcome = "success" if episode.labels and all(l.success for l in episode.labels) else "failure"
     return episode
+
+
+_WORKER: dict[str, Any] = {}
+
+
+def _init(task: str, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) -> None:
+    from threadpoolctl import threadpool_limits
+
+    from ..tasks import get_task
+    threadpool_limits(1)
+    t = get_task(task)
+    _WORKER.update(task=t, env=gym.make(t.ENV_ID, **env_kwargs), mentor=t.make_mentor(**mentor_kwargs))
+
+
+def _record(seed: int) -> Episode:
+    w = _WORKER
+    return record_episode(w["env"], w["mentor"], seed, w["task"].demo_options(seed))
+
+
+def record_many(task: str, seeds: list[int], env_kwargs: dict[str, Any] | None = None,
+                mentor_kwargs: dict[str, Any] | None = None, workers: int = 1,
+                progress: Any = None) -> list[Episode]:
+    """Record one demonstration per seed with the task's scripted mentor, on ``workers`` processes.
+
+    ``progress`` is called with (done, total) after each demo. The result is in seed order and does
+    not depend on the number of workers.
+    """
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    import multiform.envs  # noqa: F401  (registers the envs)
+    env_kwargs, mentor_kwargs = dict(env_kwargs or {}), dict(mentor_kwargs or {})
+    out: list[Episode] = []
+    if workers <= 1:
+        _init(task, env_kwargs, mentor_kwargs)
+        for i, s in enumerate(seeds):
+            out.append(_record(s))
+            if progress:
+                progress(i + 1, len(seeds))
+        _WORKER["env"].close()
+        return out
+    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("fork"), initializer=_init,
+                             initargs=(task, env_kwargs, mentor_kwargs)) as pool:
+        for i, ep in enumerate(pool.map(_record, seeds)):
+            out.append(ep)
+            if progress:
+                progress(i + 1, len(seeds))
+    return out

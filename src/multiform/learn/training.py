@@ -25,7 +25,7 @@ from .gp import GPLaw
 from .judge import Judge
 from .labels import LabelRecord, LabelStore, records_from_episode
 from .region import PlaceRegions
-from .views import law_data, place_samples, token_place, value_matrix
+from .views import law_data, place_episode, place_samples, value_matrix
 
 Progress = Callable[[str], None]
 
@@ -80,12 +80,14 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
         tr_d, te_d = split_episodes(len(demos), heldout, seed)
         tr = np.flatnonzero(np.isin(data.episode, demos[tr_d]))
         te = np.flatnonzero(np.isin(data.episode, demos[te_d]))
-        probe = make().fit(data.X[subset(tr)], data.Y[subset(tr)])
+        fit_idx = subset(tr)
+        probe = make().fit(data.X[fit_idx], data.Y[fit_idx])
         pred = probe.predict(data.X[te])
         err = np.sqrt(np.mean((pred - data.Y[te]) ** 2, axis=0)) / np.maximum(data.Y[te].std(axis=0), 1e-12)
         summary["heldout_nrmse"] = float(err.max())
         summary["heldout_samples"] = int(len(te))
-    law_model = make().fit(data.X[subset(np.arange(len(data.X)))], data.Y[subset(np.arange(len(data.X)))])
+    fit_idx = subset(np.arange(len(data.X)))
+    law_model = make().fit(data.X[fit_idx], data.Y[fit_idx])
     info = law_model.summary()
     summary.update(mode=info["mode"], n_fit=info["n"], n_inducing=info["n_inducing"],
                    length_scales={k: round(v, 4) for k, v in info["length_scale"].items()},
@@ -94,10 +96,11 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
 
 
 def mentor_records(apn: APN, episodes: Sequence[Episode]) -> list[LabelRecord]:
-    """The mentor's segment labels of the demonstrations as label-store records."""
+    """The mentor's labels of the demonstrations as label-store records, one per place stay
+    (see :func:`~.views.place_episode`)."""
     out = []
     for i, ep in enumerate(episodes):
-        out += records_from_episode(demo_source(i), ep.labels, lambda t: token_place(apn, t))
+        out += records_from_episode(demo_source(i), place_episode(apn, ep).labels, lambda p: p)
     return out
 
 

@@ -188,3 +188,37 @@ def place_samples(apn: APN, episodes: Sequence[Episode], names: Sequence[str], s
             if len(rows):
                 out.setdefault(p, []).append(rows)
     return {p: np.concatenate(v) for p, v in out.items()}
+
+
+def stays(apn: APN, tags: Sequence[str]) -> list[tuple[int, int, str]]:
+    """Maximal runs of samples with the token in one place, as ``(start, end, place)``.
+
+    A place's stay spans every maneuver run while the token sat there: a swing-up and its repeats,
+    a catch and the balancing after it. Judges grade stays, so the mentor's tagging and the robot's
+    firings (which may split the same stay differently) are graded alike.
+    """
+    places = [token_place(apn, str(t)) if t else None for t in tags]
+    out: list[tuple[int, int, str]] = []
+    start = 0
+    for k in range(1, len(places) + 1):
+        if k == len(places) or places[k] != places[start]:
+            if places[start] is not None:
+                out.append((start, k, places[start]))
+            start = k
+    return out
+
+
+def place_episode(apn: APN, ep: Episode) -> Episode:
+    """``ep`` with per-sample place ids as its tags and one label per stay (success when every
+    mentor label inside the stay says success), for the judges."""
+    from dataclasses import replace
+
+    from ..demos.episode import SegmentLabel
+    tags = np.full(ep.num_samples, "", dtype=object)
+    labels = []
+    for s, e, p in stays(apn, ep.transitions):
+        tags[s:e] = p
+        inside = [lab for lab in ep.labels if lab.start < e and lab.end > s]
+        if inside:
+            labels.append(SegmentLabel(s, e, p, all(lab.success for lab in inside), inside[-1].labeller))
+    return replace(ep, transitions=tags.astype(str), labels=labels)

@@ -1,0 +1,238 @@
+"""The main job: from nothing to a report, for one task (``multiform demo pendulum``).
+
+Stages, each timed and each resumable (a finished stage's output on disk is reused):
+
+1. **record** the scripted mentor's demonstrations (``demos.h5``);
+2. **train** the skill model from the mentor's definition: GP laws (successful segments only),
+   SVM judges (the mentor's labels), place regions, and the auxiliary inverse model (the robot's
+   own babbling);
+3. **practise** through the task's scenarios; constant failure triggers diagnosis and repair;
+4. **evaluate** the final skill on randomised trials (Wilson interval), and the ablations on the
+   same seeds and demonstrations;
+5. **report**: nets before/after each revision, plots, videos, ``metrics.json``, ``report.html``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+from tqdm import tqdm
+
+from .adapt.evaluation import TrialSpec, Variant, evaluate
+from .adapt.practice import Practice, PracticeConfig
+from .demos.dataset import read_dataset, write_dataset
+from .demos.record import record_many
+from .errors import InvalidInput
+from .io import write_json
+from .learn.labels import LabelStore
+from .learn.training import fit_judge, fit_law, fit_regions, judged_places, mentor_records
+from .model import SkillModel
+from .stats import rate
+from .tasks import get_task
+
+Log = Callable[[str], None]
+
+
+@dataclass
+class JobConfig:
+    """Sizes of the main job (defaults: the README's `make demo`)."""
+
+    demos: int = 40
+    eval_trials: int = 200
+    ablation_trials: int = 100
+    practice_max_trials: int = 30
+    workers: int = 2
+    seed: int = 0
+    push_fraction: float = 0.5
+    videos: bool = True
+    inverse_model: bool = True
+
+
+class Job:
+    """One run folder for one task."""
+
+    def __init__(self, task: str | ModuleType, out: str | Path, config: JobConfig | None = None,
+                 log: Log = print, progress: bool = True):
+        self.task = get_task(task) if isinstance(task, str) else task
+        self.out = Path(out)
+        self.cfg = config or JobConfig()
+        self.log = log
+        self.progress = progress
+        self.timings: dict[str, float] = {}
+        self.metrics: dict[str, Any] = {}
+
+    def _bar(self, total: int, desc: str) -> tqdm:
+        return tqdm(total=total, desc=desc, unit="trial" if "demo" not in desc else "demo",
+                    disable=not self.progress, leave=False, dynamic_ncols=True)
+
+    def _stage(self, name: str, fn: Callable[[], Any]) -> Any:
+        t0 = time.perf_counter()
+        self.log(f"[{name}] ...")
+        out = fn()
+        self.timings[f"{name}_s"] = round(time.perf_counter() - t0, 1)
+        self.log(f"[{name}] done in {self.timings[f'{name}_s']:.0f} s")
+        return out
+
+    # -- 1. demonstrations -----------------------------------------------------------------------
+    def record(self) -> Path:
+        path = self.out / "demos.h5"
+        if path.exists():
+            try:
+                if len(read_dataset(path)) == self.cfg.demos:
+                    self.log(f"  reusing {path}")
+                    return path
+            except InvalidInput:
+                pass
+        seeds = [self.cfg.seed * 100_000 + i for i in range(self.cfg.demos)]
+        with self._bar(len(seeds), "recording demos") as bar:
+            eps = record_many(self.task.TASK, seeds, self.task.DEMO_ENV_KWARGS, workers=self.cfg.workers,
+                              progress=lambda i, n: bar.update(1))
+        write_dataset(path, eps, self.task.SKILL, self.task.ENV_ID, self.task.DEMO_ENV_KWARGS,
+                      mentor=getattr(eps[0], "mentor", "") if eps else "")
+        ok = sum(e.outcome == "success" for e in eps)
+        self.log(f"  {len(eps)} demos, mentor succeeded in {ok} ({100 * ok / len(eps):.0f} %)")
+        return path
+
+    # -- 2. training ------------------------------------------------------------------------------
+    def train(self, demos: Path) -> SkillModel:
+        model = SkillModel.create(self.out / "model", self.task.SKILL, demos, self.task.ENV_ID,
+                                  self.task.robot_env_kwargs(self.cfg.inverse_model))
+        inverse = self.task.train_inverse_model if self.cfg.inverse_model else None
+        train_model(model, seed=self.cfg.seed, log=self.log, inverse_trainer=inverse)
+        return model
+
+    # -- 3. practice ------------------------------------------------------------------------------
+    def practise(self, model: SkillModel) -> dict[str, Any]:
+        results = {}
+        for sc in self.task.scenarios():
+            folder = self.out / "practice" / sc["name"]
+            cfg = PracticeConfig(max_trials=self.cfg.practice_max_trials, seed=self.cfg.seed + sc.get("seed", 0),
+                                 **sc.get("config", {}))
+            practice = Practice(model, folder, cfg, options=sc["options"], perturb=sc.get("perturb"), name=sc["name"])
+            with self._bar(cfg.max_trials, f"practice {sc['name']}") as bar:
+                bar.update(practice.load_state().trial)
+                state = practice.run(progress=lambda st, tr: bar.update(1))
+            revs = [r for r in state.revisions if r.get("operator") != "none"]
+            first_ok = next((t["trial"] for t in state.trials if t["success"]), None)
+            results[sc["name"]] = {
+                "title": sc["title"], "trials": len(state.trials), "stop_reason": state.stop_reason,
+                "successes": sum(t["success"] for t in state.trials), "first_success_trial": first_ok,
+                "revisions": [{k: r[k] for k in ("version", "operator", "target", "reason", "after_trial")} for r in revs],
+                "outcomes": [t["outcome"] for t in state.trials], "state": str(folder / "state.json")}
+            self.log(f"  {sc['name']}: {len(state.trials)} trials, revisions: "
+                     + (", ".join(f"{r['operator']} {r['target']}" for r in revs) or "none")
+                     + f"; {state.stop_reason}")
+        return results
+
+    # -- 4. evaluation ----------------------------------------------------------------------------
+    def evaluate(self, model: SkillModel) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+        specs = self.task.evaluation_specs(self.cfg.eval_trials, self.cfg.seed, self.cfg.push_fraction)
+        final = Variant("multiform (definition + demonstration + evaluation, with repair)", str(model.path),
+                        notes="the robot's revised net", use_inverse_model=self.cfg.inverse_model)
+        with self._bar(len(specs), "evaluating") as bar:
+            main = evaluate(self.task.TASK, final, specs, self.cfg.workers, progress=lambda i, n: bar.update(1))
+        self.log(f"  final success rate {100 * main['rate']:.1f} % ({main['successes']}/{main['trials']}, "
+                 f"95 % CI {100 * main['low']:.1f}-{100 * main['high']:.1f} %)")
+        rows = [main]
+        sub = specs[: self.cfg.ablation_trials]
+        for variant in self.task.ablations(model, self.out, self.cfg):
+            with self._bar(len(sub), f"ablation: {variant.name[:30]}") as bar:
+                r = evaluate(self.task.TASK, variant, sub, self.cfg.workers, progress=lambda i, n: bar.update(1))
+            rows.append(r)
+            self.log(f"  {variant.name}: {100 * r['rate']:.1f} % ({r['successes']}/{r['trials']})")
+        return main, rows
+
+    # -- the whole job ----------------------------------------------------------------------------
+    def run(self) -> dict[str, Any]:
+        t0 = time.perf_counter()
+        self.out.mkdir(parents=True, exist_ok=True)
+        demos = self._stage("record", self.record)
+        model = self._stage("train", lambda: self.train(demos))
+        scenarios = self._stage("practice", lambda: self.practise(model))
+        main, rows = self._stage("evaluate", lambda: self.evaluate(model))
+        from .report.artifacts import write_artifacts
+        ds = read_dataset(demos)
+        ok = sum(e.outcome == "success" for e in ds)
+        revisions = []
+        for name, s in scenarios.items():
+            for r in s["revisions"]:
+                revisions.append({**r, "scenario": name})
+        m = self.metrics
+        m.update(skill=self.task.SKILL, task=self.task.TASK, description=self.task.DESCRIPTION,
+                 config=asdict(self.cfg), demos={"count": len(ds), "file": "demos.h5", "mentor_success_rate": rate(ok, len(ds)),
+                                                 **{k: v for k, v in ds.summary().items() if k in ("samples", "samples_per_transition", "duration_s")}},
+                 training=model.manifest.get("training", {}),
+                 practice_trials=sum(s["trials"] for s in scenarios.values()),
+                 scenarios=scenarios, revisions=revisions,
+                 success_rate={k: main[k] for k in ("successes", "trials", "rate", "low", "high")},
+                 self_assessed=main["self_assessed"], agreement_with_physical_check=main["agreement"],
+                 pushed=main["pushed"], target_success_rate=self.task.TARGET_SUCCESS_RATE,
+                 ablation=[{k: r[k] for k in ("name", "notes", "successes", "trials", "rate", "low", "high")} for r in rows])
+        self._stage("report", lambda: write_artifacts(self, model, main))
+        self.timings["total_s"] = round(time.perf_counter() - t0, 1)
+        m["timings"] = dict(self.timings)
+        write_json(self.out / "metrics.json", m)
+        from .report.page import build_report
+        build_report(self.out, m)
+        write_json(self.out / "evaluation_trials.json", {r["name"]: r["trials_detail"] for r in rows})
+        self.log(f"wrote {self.out / 'report.html'} (total {self.timings['total_s']:.0f} s)")
+        return m
+
+
+def train_model(model: SkillModel, seed: int = 0, log: Log = print,
+                inverse_trainer: Callable[..., dict[str, Any]] | None = None) -> dict[str, Any]:
+    """Fit what a model directory lacks from its demonstrations: every law of the original
+    definition (successful segments only), a judge per judged place (mentor labels, via the label
+    store), the place regions, and (with ``inverse_trainer``) the auxiliary inverse model. Pieces
+    already on disk are kept, so an interrupted training resumes."""
+    done = model.manifest.get("training", {})
+    apn = model.history.version(0)
+    eps = model.episodes
+    store = LabelStore(model.path / "labels.jsonl")
+    if not len(store):
+        store.add_many(mentor_records(apn, eps))
+    summary: dict[str, Any] = dict(done)
+    laws = summary.setdefault("laws", {})
+    for name in apn.laws:
+        if name in laws and (model.path / "laws" / f"{name}.npz").exists():
+            continue
+        t0 = time.perf_counter()
+        law, info = fit_law(apn, eps, name, seed=seed)
+        info["fit_seconds"] = round(time.perf_counter() - t0, 2)
+        model.save_law(name, law)
+        laws[name] = info
+        model.update_manifest(training={"laws": laws})
+        log(f"  law {name}: n={info['n']} from {info['demos']} demos ({info['mode']}), "
+            f"held-out NRMSE {info.get('heldout_nrmse', float('nan')):.3f}, length scales {info['length_scales']}, "
+            f"σf {info['signal_std']}, σn {info['noise_std']}")
+    judges = summary.setdefault("judges", {})
+    for place in judged_places(apn):
+        if place in judges and (model.path / "judges" / f"{place}.npz").exists():
+            continue
+        judge, info = fit_judge(apn, eps, store, place, seed=seed)
+        model.save_judge(place, judge)
+        judges[place] = info
+        model.update_manifest(training={"judges": judges})
+        log(f"  judge {place}: kernel {info['kernel']}, CV {info['cv_score']:.3f}, held-out accuracy "
+            f"{info.get('heldout_accuracy', float('nan')):.3f} on {info.get('heldout_segments', 0)} segments")
+    if "regions" not in summary or model.regions() is None:
+        regions, info = fit_regions(apn, eps, seed=seed)
+        model.save_regions(regions)
+        summary["regions"] = info
+        log(f"  regions over {', '.join(info['variables'])}: " +
+            ", ".join(f"{p} ({n} states)" for p, n in info["places"].items()))
+    if inverse_trainer is not None and ("inverse_model" not in summary
+                                        or not (model.path / "inverse_model.npz").exists()):
+        summary["inverse_model"] = inverse_trainer(model, seed=seed, log=log)
+    model.update_manifest(training=summary)
+    return summary
+
+
+def load_metrics(out: str | Path) -> dict[str, Any]:
+    return json.loads((Path(out) / "metrics.json").read_text())

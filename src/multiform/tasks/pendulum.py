@@ -1,0 +1,131 @@
+"""The pendulum task: an arm swings up and balances an inverted pendulum (the paper's first test).
+
+Everything here is the *experiment*: which env and mentor, how trials are randomised, when the
+experimenter pushes, the physical success check used to evaluate every variant alike, and the
+main job (:func:`run_demo`) that goes from nothing to a report.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..runtime.trace import Trace
+
+ENV_ID = "multiform/ArmPendulum-v0"
+SKILL = "pendulum_strict"          # the mentor's definition as first written (t1 over-strict)
+SKILL_SOUND = "pendulum"           # the same net with a workable t1
+DEMO_ENV_KWARGS = {"action_mode": "ee"}
+PUSH_PLACE = "P2"
+PUSH_AFTER = 1.5                   # s of balancing before the experimenter pushes
+PUSH_DURATION = 0.1                # s
+PUSH_SIZE = 0.5                    # N m about the hinge; more than the balance law absorbs
+BALANCE_ANGLE = 0.5                # rad: the physical check's "upright"
+BALANCE_HOLD = 5.0                 # s
+
+
+def make_mentor(**kwargs: Any):
+    """The scripted mentor standing in for a person with a joystick."""
+    from ..demos.pendulum_mentor import PendulumMentor
+    return PendulumMentor(**kwargs)
+
+
+def demo_options(seed: int) -> dict[str, Any]:
+    """Reset options of demonstration ``seed``: pendulum length and mass ±20 %, random start."""
+    return {"randomize": True}
+
+
+def trial_options(seed: int) -> dict[str, Any]:
+    """Reset options of practice and evaluation trials (same randomisation as the demos)."""
+    return {"randomize": True}
+
+
+def push(seed: int, size: float = PUSH_SIZE) -> dict[str, Any]:
+    """The experimenter's push for a trial: direction and timing vary with the seed."""
+    rng = np.random.default_rng([seed, 7])
+    return {"place": PUSH_PLACE, "after": float(PUSH_AFTER + rng.uniform(0.0, 1.0)),
+            "size": float(size * rng.choice([-1.0, 1.0]) * rng.uniform(0.9, 1.1)), "duration": PUSH_DURATION}
+
+
+def physical_success(trace: Trace) -> bool:
+    """The task done, judged on the pendulum itself: upright (|θ| < 0.5 rad) for 5 s without a break."""
+    if trace.outcome == "diverged":
+        return False
+    theta = np.abs(trace.value("theta"))
+    need = int(math.ceil(BALANCE_HOLD / trace.dt))
+    up = theta < BALANCE_ANGLE
+    run = 0
+    for ok in up:
+        run = run + 1 if ok else 0
+        if run >= need:
+            return True
+    return False
+
+
+# -- what the main job needs of this task (see multiform.job) ----------------------------------------
+TASK = "pendulum"
+DESCRIPTION = ("A 6-axis arm (AUBO i5 kinematics, MuJoCo) learns to swing up and balance an inverted pendulum "
+               "from a scripted mentor's joystick demonstrations, labels and over-strict definition.")
+TARGET_SUCCESS_RATE = 0.95
+PLOT_VARIABLES = [("theta", "θ [rad]"), ("omega", "ω [rad/s]"), ("x", "x [m]"), ("xdot", "ẋ [m/s]")]
+
+
+def robot_env_kwargs(inverse_model: bool) -> dict[str, Any]:
+    """With the learned inverse model the robot sends joint torques; without, the env's reference
+    operational-space controller turns the end-effector command into torques."""
+    return {"action_mode": "torque"} if inverse_model else {"action_mode": "ee"}
+
+
+def scenarios() -> list[dict[str, Any]]:
+    """The paper's two practice scenarios, in order (the second starts from the first's net)."""
+    return [
+        {"name": "a_strict", "title": "(a) the mentor's over-strict t1: exactly upright, exactly at rest",
+         "options": trial_options, "config": {"failures_in_a_row": 3, "success_streak": 5}},
+        {"name": "b_push", "title": "(b) pushes while balancing that the balance law cannot absorb",
+         "options": trial_options, "perturb": lambda k: _push_in_place(1_000 + k),
+         "config": {"failures_in_a_row": 3, "success_streak": 5}, "seed": 1},
+    ]
+
+
+def _push_in_place(seed: int):
+    from ..adapt.perturb import PushInPlace
+    return PushInPlace(**push(seed))
+
+
+def evaluation_specs(n: int, seed: int, push_fraction: float) -> list:
+    """``n`` evaluation trials: randomised start, length and mass ±20 %; every trial whose index falls
+    in ``push_fraction`` is pushed while balancing."""
+    from ..adapt.evaluation import TrialSpec
+    specs = []
+    every = 0 if push_fraction <= 0 else max(1, int(round(1.0 / push_fraction)))
+    for i in range(n):
+        s = 50_000_000 + seed * 100_000 + i
+        specs.append(TrialSpec(seed=s, options=trial_options(s), push=push(s) if every and i % every == 0 else None))
+    return specs
+
+
+def ablations(model, out, cfg) -> list:
+    """The baselines on the same seeds and demonstrations."""
+    from ..adapt.evaluation import Variant
+    from .baselines import demo_only_model, same_laws_model
+    sound = same_laws_model(model, out / "baselines" / "sound_definition", SKILL_SOUND)
+    demo_only = demo_only_model(model, out / "baselines" / "demonstration_only", hold_condition="abs(theta) < 0.5",
+                                hold_time=BALANCE_HOLD, seed=cfg.seed)
+    inv = cfg.inverse_model
+    return [
+        Variant("definition + demonstration, no repair (the mentor's net as written)", str(model.path),
+                net_version=0, use_inverse_model=inv, notes="t1 never holds: no way to balancing"),
+        Variant("definition + demonstration, no repair (t1 written workable by hand)", str(sound.path),
+                use_inverse_model=inv, notes="no way back after a push (no t7)"),
+        Variant("demonstration only (one GP law on all demonstration data, no net)", str(demo_only.path),
+                use_inverse_model=inv, use_judges=False,
+                notes="one law for all phases, failed demonstrations included"),
+    ]
+
+
+def train_inverse_model(model, seed: int = 0, log=print) -> dict[str, Any]:
+    """The auxiliary inverse model from the arm's own babbling (see multiform.learn.inverse)."""
+    from ..learn.inverse import train_arm_inverse_model
+    return train_arm_inverse_model(model, seed=seed, log=log)
