@@ -126,7 +126,6 @@ class Workspace:
         self.qacc6 = self.qacc[:6]
         self.out = np.zeros(model.nv)
         self.out6 = self.out[:6]
-        self.tau = np.zeros(6)
         self.site = model.site(site).id
         self.body = int(model.site_bodyid[self.site])
         self.site_pos = data.site_xpos[self.site]
@@ -157,11 +156,10 @@ def torques_for(a6: np.ndarray, model: mujoco.MjModel, data: mujoco.MjData,
         qacc = np.linalg.lstsq(w.jac6, rhs, rcond=None)[0]
     w.qacc6[:] = qacc
     mujoco.mj_mulM(model, data, w.out, w.qacc)
-    tau = np.add(w.out6, w.bias6, out=w.tau)
+    tau = w.out6 + w.bias6
     tau -= w.passive6
-    if limits is TORQUE_LIMITS:
-        return np.minimum(np.maximum(tau, _NEG_LIMITS), TORQUE_LIMITS)
-    return np.minimum(np.maximum(tau, -limits), limits)
+    np.maximum(tau, _NEG_LIMITS if limits is TORQUE_LIMITS else -limits, out=tau)
+    return np.minimum(tau, limits, out=tau)
 
 
 class ReferenceController:
