@@ -75,19 +75,35 @@ def _wrap(a: float) -> float:
 class PendulumMentor:
     """A person with a joystick demonstrating swing-up and balancing (see the module docstring).
 
-    All times in seconds, speeds in m/s. ``mistake`` forces one kind of mistake in every demo
-    (``"none"`` forbids them); ``None`` draws them with ``mistake_rate``.
+    Times in seconds, speeds in m/s, angles in rad.
+
+    * The person: ``delay`` (range a demo's reaction delay is drawn from), ``rate`` (joystick
+      reads per second), ``resolution`` (command quantum), ``stick_accel`` (fastest change of the
+      command, m/s²), ``v_max`` (full stick), perception noise ``angle_noise``, ``rate_noise``,
+      ``position_noise``, ``velocity_noise`` (standard deviations) and ``motor_noise``.
+    * Mistakes: ``mistake_rate`` (probability per demo), ``mistake_weights`` (of ``wrong_phase``,
+      ``over_pump``, ``early_switch``, ``lapse``), or ``mistake`` to force one kind (``"none"``
+      forbids them).
+    * Swing-up: ``kick`` and ``kick_time`` (the first push), ``stroke_max`` (longest first
+      stroke), ``pump_gain`` (largest pumping amplitude), ``energy_gain`` (pumping per unit of
+      energy deficit, in units of g), ``energy_margin`` (energy aimed for above upright at rest, in
+      units of g), ``lead`` (anticipation), ``centring`` (pull back to the centre, 1/s).
+    * Switch and balance: ``switch_angle``, ``switch_rate``, ``catch_time`` (length of ``t1``),
+      ``hold_time`` (balance wanted), ``give_up`` (longest swing-up), ``fall_angle`` (the pendulum
+      has fallen).
     """
 
     name = "scripted-pendulum"
 
     def __init__(self, delay: tuple[float, float] = (0.04, 0.08), rate: float = 100.0, resolution: float = 0.02,
-                 stick_accel: float = 25.0, v_max: float = 1.5, angle_noise: float = 0.01, rate_noise: float = 0.05,
-                 position_noise: float = 0.003, velocity_noise: float = 0.02, motor_noise: float = 0.02,
-                 mistake_rate: float = 0.28, mistake_weights: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0),
-                 mistake: str | None = None, pump_gain: float = 1.2, energy_gain: float = 0.4, lead: float = 0.08, energy_margin: float = 0.03,
-                 centring: float = 1.0, switch_angle: float = 0.4, switch_rate: float = 2.5,
-                 kick: float = 0.5, kick_time: float = 0.3, stroke_max: float = 2.0, catch_time: float = 0.5, hold_time: float = 5.0, give_up: float = 20.0, fall_angle: float = 0.8,
+                 stick_accel: float = 25.0, v_max: float = 1.5, angle_noise: float = 0.01,
+                 rate_noise: float = 0.05, position_noise: float = 0.003, velocity_noise: float = 0.02,
+                 motor_noise: float = 0.02, mistake_rate: float = 0.28,
+                 mistake_weights: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0),
+                 mistake: str | None = None, kick: float = 0.5, kick_time: float = 0.3, stroke_max: float = 2.0,
+                 pump_gain: float = 1.2, energy_gain: float = 0.4, energy_margin: float = 0.03,
+                 lead: float = 0.08, centring: float = 1.0, switch_angle: float = 0.4, switch_rate: float = 2.5,
+                 catch_time: float = 0.5, hold_time: float = 5.0, give_up: float = 20.0, fall_angle: float = 0.8,
                  dt: float = 0.001):
         if mistake is not None and mistake not in MISTAKES + ("none",):
             raise ValueError(f"mistake must be one of {MISTAKES + ('none',)} or None, not {mistake!r}")
@@ -132,7 +148,7 @@ class PendulumMentor:
         self.mistake_kind = kind
         # the parameters of the mistake, drawn now so that a demo is fixed by its generator
         self._wrong_from = float(rng.uniform(0.5, 3.0))
-        self._overpump = float(rng.uniform(1.0, 1.6))        # extra energy: top speed 4-5 rad/s
+        self._overpump = float(rng.uniform(1.0, 1.6))        # energy aimed for, in g: races over the top
         self._early_angle = float(rng.uniform(0.8, 1.1))
         self._lapse_at = float(rng.uniform(1.0, 3.5))
         self._lapse_len = float(rng.uniform(0.4, 1.0))
@@ -289,7 +305,8 @@ class PendulumMentor:
             elif tag == "t1":
                 ok = caught(start, end)
             elif tag == "t3":
-                ok = (end - start) * dt >= self.hold_time - 1e-9 and bool(np.all(np.abs(th[start:end]) < self.fall_angle))
+                held = (end - start) * dt >= self.hold_time - 1e-9
+                ok = held and bool(np.all(np.abs(th[start:end]) < self.fall_angle))
             else:
                 ok = False
             labels.append(SegmentLabel(start, end, tag, bool(ok), self.name))

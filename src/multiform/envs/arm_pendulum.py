@@ -64,8 +64,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
-from .osc import (OBSERVATION_NAMES, TORQUE_LIMITS, V_MAX, WORKSPACE_CENTRE, X_LIMIT, DEFAULT_GAINS, Gains,
-                  Workspace, task_acceleration, torques_for)
+from .osc import DEFAULT_GAINS, OBSERVATION_NAMES, TORQUE_LIMITS, Gains, Workspace, task_acceleration, torques_for
 
 COMMAND_NAMES = ("v_cmd",)
 NOMINAL = {"length": 0.4, "mass": 0.1, "damping": 2e-4}

@@ -141,8 +141,8 @@ def torques_for(a6: np.ndarray, model: mujoco.MjModel, data: mujoco.MjData,
     ``data`` must hold the position- and velocity-dependent quantities of its current state
     (after ``mj_forward``, or ``mj_step1`` as the env does): site pose, ``qM``, ``qfrc_bias``,
     ``qfrc_passive``, ``cvel``. The joints' own damping (``qfrc_passive``) is compensated, like an
-    identified friction model on a real arm. Only the six arm joints are actuated; the pendulum's coordinate gets no acceleration
-    demand. The result is clipped to ``limits``. ``work`` (a :class:`Workspace` of this ``model``
+    identified friction model on a real arm. Only the six arm joints are actuated; the pendulum's
+    coordinate gets no acceleration demand. The result is clipped to ``limits``. ``work`` (a :class:`Workspace` of this ``model``
     and ``data``) saves allocations on a 1 kHz path.
     """
     w = work if work is not None and work.data is data else Workspace(model, data)
