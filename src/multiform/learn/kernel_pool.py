@@ -196,6 +196,12 @@ class KernelPoolClassifier(ClassifierMixin, BaseEstimator):
             f = self._search(X, y, min_count, subsets)
             self.decision_ = self._fit_one(self.best_kernel_, self.best_params_, X[:, self.columns_], y)
             self.calibration_ = "cross-validated"
+            inside = np.asarray(self.decision_.decision(X[:, self.columns_]))
+            if SCORERS[self.scoring](y, inside > 0) < self.best_score_ - 0.1:
+                # The refit on all samples disagrees with its folds (its decision values live on
+                # another scale); calibrating on the folds' values would misplace the 0.5 threshold.
+                f = inside
+                self.calibration_ = "in-sample (the refit disagreed with the folds)"
         self.platt_ = platt_fit(f, y)
         return self
 
@@ -236,7 +242,9 @@ class KernelPoolClassifier(ClassifierMixin, BaseEstimator):
                         scores.append(scorer(y[te], oof[te] > 0))
                     mean, std = float(np.mean(scores)), float(np.std(scores))
                     sbest = max(sbest, mean)
-                    key = (mean, -std, -len(cols), -rank)
+                    # ties: steadier, fewer features, then larger C (with every multiplier at its
+                    # bound a tiny-C refit can put libsvm's intercept outside the data)
+                    key = (mean, -std, -len(cols), float(params.get("C", 1.0)), -rank)
                     if kernel not in best_by_kernel or key > best_by_kernel[kernel][0]:
                         best_by_kernel[kernel] = (key, dict(params), sname, oof, std)
             self.subset_scores_[sname] = sbest
