@@ -181,16 +181,17 @@ class ReferenceController:
         self._work = Workspace(model, self.data)
         self._hinge_q = int(model.joint("pendulum").qposadr[0])
         self._hinge_v = int(model.joint("pendulum").dofadr[0])
+        self._qpos, self._qvel = self.data.qpos, self.data.qvel
 
     def set_state(self, obs: np.ndarray) -> None:
         """Load the robot's own model with the state an observation reports."""
-        d = self.data
-        d.qpos[:6] = obs[_Q0:_Q0 + 6]
-        d.qvel[:6] = obs[_QD0:_QD0 + 6]
-        d.qpos[self._hinge_q] = obs[0] - obs[_R0 + 1]
-        d.qvel[self._hinge_v] = obs[1] - obs[_W0 + 1]
-        mujoco.mj_fwdPosition(self.model, d)
-        mujoco.mj_fwdVelocity(self.model, d)
+        qpos, qvel = self._qpos, self._qvel
+        qpos[:6] = obs[_Q0:_Q0 + 6]
+        qvel[:6] = obs[_QD0:_QD0 + 6]
+        qpos[self._hinge_q] = obs[0] - obs[_R0 + 1]
+        qvel[self._hinge_v] = obs[1] - obs[_W0 + 1]
+        mujoco.mj_fwdPosition(self.model, self.data)
+        mujoco.mj_fwdVelocity(self.model, self.data)
 
     def torques_at(self, a6: np.ndarray, obs: np.ndarray) -> np.ndarray:
         """Torques for task acceleration ``a6`` in the state ``obs`` reports."""
