@@ -50,7 +50,7 @@ class LoadEstimator:
 
     def __init__(self, m_hand: float = 0.35, m_held: float = 0.2, m_chain: float = 0.06, l_chain: float = 0.12,
                  m_rod: float = 0.2, l_rod: float = 0.30, damping: float = 0.0005, accel_noise: float = 80.0,
-                 force_noise: float = 0.3, force_rel: float = 0.08, gate: float = 50.0):
+                 force_noise: float = 0.3, force_rel: float = 0.08, gate: float = 50.0, jacobian_every: int = 2):
         self.m_hand = m_hand
         self.m_held = m_held
         self.m_chain = m_chain
@@ -62,6 +62,9 @@ class LoadEstimator:
         self.force_noise = force_noise
         self.force_rel = force_rel
         self.gate = gate
+        self.jacobian_every = jacobian_every
+        self._nominal_masses = (m_held, m_chain, m_rod)
+        self._constants()
         self.reset()
 
     def reset(self, pivot: tuple[float, float] = (0.065, -0.0275), held_com: tuple[float, float] = (-0.085, -0.0275),
@@ -77,40 +80,54 @@ class LoadEstimator:
         self._init = angle is not None
         self.x = [a, a, float(rate), float(rate)]
         v = angle_std * angle_std
-        self.P = [[v, 0.9 * v, 0.0, 0.0], [0.9 * v, v, 0.0, 0.0], [0.0, 0.0, 4.0, 0.0], [0.0, 0.0, 0.0, 4.0]]
+        self.P = (v, 0.9 * v, 0.0, 0.0, v, 0.0, 0.0, 4.0, 0.0, 4.0)
         self.pull = (0.0, 0.0)
         self.rejected = 0
+        self._jac = None
+        self._n = 0
+
+    def weigh(self, load: float, nominal: float = 0.46) -> float:
+        """Scale the nunchaku's masses to a measured static ``load`` [N] of the whole nunchaku.
+
+        The robot weighs what it holds: at rest the wrist carries the hand, the held rod and the
+        free part; ``load`` is that minus the hand's own weight. Rods and chain are assumed to scale
+        alike (one material); returns the scale applied to the nominal masses.
+        """
+        scale = min(max(load / (GRAVITY * nominal), 0.5), 2.0)
+        self.m_held = self._nominal_masses[0] * scale
+        self.m_chain = self._nominal_masses[1] * scale
+        self.m_rod = self._nominal_masses[2] * scale
+        self._constants()
+        return scale
 
     @property
     def chain_angle(self) -> float:
         """Estimated world angle of the chain [rad]."""
         return self.x[0]
 
+    def _constants(self) -> None:
+        l1, mc, m2, d = self.l_chain, 0.5 * self.m_chain, self.m_rod, 0.5 * self.l_rod
+        m11 = (mc + m2) * l1 * l1
+        m22 = m2 * d * d + m2 * self.l_rod * self.l_rod / 12.0
+        self._k = (l1, mc, m2, d, m11, m22, m2 * l1 * d, (mc + m2) * l1, m2 * d, self.damping)
+
     def _dyn(self, t1: float, t2: float, w1: float, w2: float, gx: float, gz: float, wh: float):
         """Angular accelerations of chain and rod, and their pull on the pivot."""
-        l1 = self.l_chain
-        mc = 0.5 * self.m_chain
-        m2 = self.m_rod
-        d = 0.5 * self.l_rod
+        l1, mc, m2, d, m11, m22, mld, k1, k2, b = self._k
         s1, c1 = math.sin(t1), math.cos(t1)
         s2, c2 = math.sin(t2), math.cos(t2)
-        sd, cd = math.sin(t1 - t2), math.cos(t1 - t2)
-        m11 = (mc + m2) * l1 * l1
-        m12 = m2 * l1 * d * cd
-        m22 = m2 * d * d + m2 * self.l_rod * self.l_rod / 12.0
-        b = self.damping
-        r1 = (mc + m2) * l1 * (gx * c1 + gz * s1) - m2 * l1 * d * sd * w2 * w2 - b * (2.0 * w1 - wh - w2)
-        r2 = m2 * d * (gx * c2 + gz * s2) + m2 * l1 * d * sd * w1 * w1 - b * (w2 - w1)
+        sd = s1 * c2 - c1 * s2
+        m12 = mld * (c1 * c2 + s1 * s2)
+        r1 = k1 * (gx * c1 + gz * s1) - mld * sd * w2 * w2 - b * (2.0 * w1 - wh - w2)
+        r2 = k2 * (gx * c2 + gz * s2) + mld * sd * w1 * w1 - b * (w2 - w1)
         det = m11 * m22 - m12 * m12
         a1 = (m22 * r1 - m12 * r2) / det
         a2 = (m11 * r2 - m12 * r1) / det
         w1s, w2s = w1 * w1, w2 * w2
         apx = l1 * (a1 * c1 - w1s * s1)
         apz = l1 * (a1 * s1 + w1s * c1)
-        acx = apx + d * (a2 * c2 - w2s * s2)
-        acz = apz + d * (a2 * s2 + w2s * c2)
-        fx = mc * (gx - apx) + m2 * (gx - acx)
-        fz = mc * (gz - apz) + m2 * (gz - acz)
+        fx = (mc + m2) * (gx - apx) - m2 * d * (a2 * c2 - w2s * s2)
+        fz = (mc + m2) * (gz - apz) - m2 * d * (a2 * s2 + w2s * c2)
         if fx * s1 - fz * c1 < 0.0:
             return (gx * c1 + gz * s1) / l1, 0.0, mc * gx, mc * gz
         return a1, a2, fx + mc * gx, fz + mc * gz
@@ -144,64 +161,88 @@ class LoadEstimator:
         a1, a2, _, _ = dyn(x0, x1, x2, x3, gx, gz, w)
         x0, x1, x2, x3 = x0 + x2 * dt, x1 + x3 * dt, x2 + a1 * dt, x3 + a2 * dt
         base = dyn(x0, x1, x2, x3, gx, gz, w)
-        # Jacobian columns of (a1, a2, hx, hz) w.r.t. the state, by forward differences
-        jac = []
-        for k, eps in ((0, 1e-4), (1, 1e-4), (2, 1e-3), (3, 1e-3)):
-            xs = [x0, x1, x2, x3]
-            xs[k] += eps
-            r = dyn(xs[0], xs[1], xs[2], xs[3], gx, gz, w)
-            jac.append(((r[0] - base[0]) / eps, (r[1] - base[1]) / eps, (r[2] - base[2]) / eps,
-                        (r[3] - base[3]) / eps))
-        ja1 = [jac[k][0] for k in range(4)]
-        ja2 = [jac[k][1] for k in range(4)]
-        hxr = [jac[k][2] for k in range(4)]
-        hzr = [jac[k][3] for k in range(4)]
-        P = self.P
-        # F = I + dt * [[0 0 1 0], [0 0 0 1], ja1, ja2];  A = F P
-        A0 = [P[0][j] + dt * P[2][j] for j in range(4)]
-        A1 = [P[1][j] + dt * P[3][j] for j in range(4)]
-        A2 = [P[2][j] + dt * (ja1[0] * P[0][j] + ja1[1] * P[1][j] + ja1[2] * P[2][j] + ja1[3] * P[3][j])
-              for j in range(4)]
-        A3 = [P[3][j] + dt * (ja2[0] * P[0][j] + ja2[1] * P[1][j] + ja2[2] * P[2][j] + ja2[3] * P[3][j])
-              for j in range(4)]
-        A = (A0, A1, A2, A3)
-        # P' = A F^T + Q
+        # Jacobian rows of (a1, a2, hx, hz) w.r.t. the state, by forward differences; it changes
+        # slowly at 1 kHz, so it is refreshed every ``jacobian_every`` updates
+        if self._jac is None or self._n % self.jacobian_every == 0:
+            jac = []
+            for k, eps in ((0, 1e-4), (1, 1e-4), (2, 1e-3), (3, 1e-3)):
+                xs = [x0, x1, x2, x3]
+                xs[k] += eps
+                r = dyn(xs[0], xs[1], xs[2], xs[3], gx, gz, w)
+                jac.append(((r[0] - base[0]) / eps, (r[1] - base[1]) / eps, (r[2] - base[2]) / eps,
+                            (r[3] - base[3]) / eps))
+            self._jac = ([j[0] for j in jac], [j[1] for j in jac], [j[2] for j in jac], [j[3] for j in jac])
+        self._n += 1
+        ja1, ja2, hxr, hzr = self._jac
+        # covariance, symmetric, stored as its upper triangle
+        p00, p01, p02, p03, p11, p12, p13, p22, p23, p33 = self.P
+        u0, u1, u2, u3 = ja1
+        v0, v1, v2, v3 = ja2
+        # A = F P with F = I + dt [[0 0 1 0], [0 0 0 1], ja1, ja2]
+        a00, a01, a02, a03 = p00 + dt * p02, p01 + dt * p12, p02 + dt * p22, p03 + dt * p23
+        a10, a11, a12, a13 = p01 + dt * p03, p11 + dt * p13, p12 + dt * p23, p13 + dt * p33
+        a20 = p02 + dt * (u0 * p00 + u1 * p01 + u2 * p02 + u3 * p03)
+        a21 = p12 + dt * (u0 * p01 + u1 * p11 + u2 * p12 + u3 * p13)
+        a22 = p22 + dt * (u0 * p02 + u1 * p12 + u2 * p22 + u3 * p23)
+        a23 = p23 + dt * (u0 * p03 + u1 * p13 + u2 * p23 + u3 * p33)
+        a30 = p03 + dt * (v0 * p00 + v1 * p01 + v2 * p02 + v3 * p03)
+        a31 = p13 + dt * (v0 * p01 + v1 * p11 + v2 * p12 + v3 * p13)
+        a32 = p23 + dt * (v0 * p02 + v1 * p12 + v2 * p22 + v3 * p23)
+        a33 = p33 + dt * (v0 * p03 + v1 * p13 + v2 * p23 + v3 * p33)
+        # P = A F^T + Q
         qn = (self.accel_noise * dt) ** 2
-        Pn = [[0.0] * 4 for _ in range(4)]
-        for i in range(4):
-            Ai = A[i]
-            Pn[i][0] = Ai[0] + dt * Ai[2]
-            Pn[i][1] = Ai[1] + dt * Ai[3]
-            Pn[i][2] = Ai[2] + dt * (ja1[0] * Ai[0] + ja1[1] * Ai[1] + ja1[2] * Ai[2] + ja1[3] * Ai[3])
-            Pn[i][3] = Ai[3] + dt * (ja2[0] * Ai[0] + ja2[1] * Ai[1] + ja2[2] * Ai[2] + ja2[3] * Ai[3])
-        Pn[2][2] += qn
-        Pn[3][3] += qn
-        # measurement: S = H P H^T + R, H rows hxr, hzr
-        PHx = [Pn[i][0] * hxr[0] + Pn[i][1] * hxr[1] + Pn[i][2] * hxr[2] + Pn[i][3] * hxr[3] for i in range(4)]
-        PHz = [Pn[i][0] * hzr[0] + Pn[i][1] * hzr[1] + Pn[i][2] * hzr[2] + Pn[i][3] * hzr[3] for i in range(4)]
-        r = self.force_noise ** 2 + (self.force_rel * (yx * yx + yz * yz) ** 0.5) ** 2
-        s11 = hxr[0] * PHx[0] + hxr[1] * PHx[1] + hxr[2] * PHx[2] + hxr[3] * PHx[3] + r
-        s12 = hzr[0] * PHx[0] + hzr[1] * PHx[1] + hzr[2] * PHx[2] + hzr[3] * PHx[3]
-        s22 = hzr[0] * PHz[0] + hzr[1] * PHz[1] + hzr[2] * PHz[2] + hzr[3] * PHz[3] + r
+        n00 = a00 + dt * a02
+        n01 = a01 + dt * a03
+        n02 = a02 + dt * (u0 * a00 + u1 * a01 + u2 * a02 + u3 * a03)
+        n03 = a03 + dt * (v0 * a00 + v1 * a01 + v2 * a02 + v3 * a03)
+        n11 = a11 + dt * a13
+        n12 = a12 + dt * (u0 * a10 + u1 * a11 + u2 * a12 + u3 * a13)
+        n13 = a13 + dt * (v0 * a10 + v1 * a11 + v2 * a12 + v3 * a13)
+        n22 = a22 + dt * (u0 * a20 + u1 * a21 + u2 * a22 + u3 * a23) + qn
+        n23 = a23 + dt * (v0 * a20 + v1 * a21 + v2 * a22 + v3 * a23)
+        n33 = a33 + dt * (v0 * a30 + v1 * a31 + v2 * a32 + v3 * a33) + qn
+        # measurement update: H rows hxr, hzr;  S = H P H^T + R
+        h0, h1, h2, h3 = hxr
+        g0, g1, g2, g3 = hzr
+        bx0 = n00 * h0 + n01 * h1 + n02 * h2 + n03 * h3
+        bx1 = n01 * h0 + n11 * h1 + n12 * h2 + n13 * h3
+        bx2 = n02 * h0 + n12 * h1 + n22 * h2 + n23 * h3
+        bx3 = n03 * h0 + n13 * h1 + n23 * h2 + n33 * h3
+        bz0 = n00 * g0 + n01 * g1 + n02 * g2 + n03 * g3
+        bz1 = n01 * g0 + n11 * g1 + n12 * g2 + n13 * g3
+        bz2 = n02 * g0 + n12 * g1 + n22 * g2 + n23 * g3
+        bz3 = n03 * g0 + n13 * g1 + n23 * g2 + n33 * g3
+        r = self.force_noise ** 2 + self.force_rel ** 2 * (yx * yx + yz * yz)
+        s11 = h0 * bx0 + h1 * bx1 + h2 * bx2 + h3 * bx3 + r
+        s12 = g0 * bx0 + g1 * bx1 + g2 * bx2 + g3 * bx3
+        s22 = g0 * bz0 + g1 * bz1 + g2 * bz2 + g3 * bz3 + r
         det = s11 * s22 - s12 * s12
         ex, ez = yx - base[2], yz - base[3]
         if det > 1e-12:
             i11, i12, i22 = s22 / det, -s12 / det, s11 / det
             nis = ex * (i11 * ex + i12 * ez) + ez * (i12 * ex + i22 * ez)
             if nis < self.gate:
-                kx = [PHx[i] * i11 + PHz[i] * i12 for i in range(4)]
-                kz = [PHx[i] * i12 + PHz[i] * i22 for i in range(4)]
-                x0 += kx[0] * ex + kz[0] * ez
-                x1 += kx[1] * ex + kz[1] * ez
-                x2 += kx[2] * ex + kz[2] * ez
-                x3 += kx[3] * ex + kz[3] * ez
-                # P = P - K H P = P - kx PHx^T - kz PHz^T
-                for i in range(4):
-                    row = Pn[i]
-                    for j in range(4):
-                        row[j] -= kx[i] * PHx[j] + kz[i] * PHz[j]
+                kx0, kz0 = bx0 * i11 + bz0 * i12, bx0 * i12 + bz0 * i22
+                kx1, kz1 = bx1 * i11 + bz1 * i12, bx1 * i12 + bz1 * i22
+                kx2, kz2 = bx2 * i11 + bz2 * i12, bx2 * i12 + bz2 * i22
+                kx3, kz3 = bx3 * i11 + bz3 * i12, bx3 * i12 + bz3 * i22
+                x0 += kx0 * ex + kz0 * ez
+                x1 += kx1 * ex + kz1 * ez
+                x2 += kx2 * ex + kz2 * ez
+                x3 += kx3 * ex + kz3 * ez
+                # P -= K H P = kx bx^T + kz bz^T
+                n00 -= kx0 * bx0 + kz0 * bz0
+                n01 -= kx0 * bx1 + kz0 * bz1
+                n02 -= kx0 * bx2 + kz0 * bz2
+                n03 -= kx0 * bx3 + kz0 * bz3
+                n11 -= kx1 * bx1 + kz1 * bz1
+                n12 -= kx1 * bx2 + kz1 * bz2
+                n13 -= kx1 * bx3 + kz1 * bz3
+                n22 -= kx2 * bx2 + kz2 * bz2
+                n23 -= kx2 * bx3 + kz2 * bz3
+                n33 -= kx3 * bx3 + kz3 * bz3
             else:
                 self.rejected += 1
-        self.P = Pn
+        self.P = (n00, n01, n02, n03, n11, n12, n13, n22, n23, n33)
         self.x = [_wrap(x0), _wrap(x1), x2, x3]
         return _wrap(x1 - q), x3 - w

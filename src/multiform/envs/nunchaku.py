@@ -122,12 +122,13 @@ class NunchakuEnv(gym.Env):
     command_names = COMMAND_NAMES
 
     def __init__(self, render_mode: str | None = None, max_duration: float = 15.0, capture: float = 0.03,
-                 width: int = 480, height: int = 360):
+                 settle: float = 0.25, width: int = 480, height: int = 360):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None")
         self.render_mode = render_mode
         self.max_duration = float(max_duration)
         self.capture = float(capture)
+        self.settle = float(settle)
         self.width, self.height = int(width), int(height)
         self.model = mujoco.MjModel.from_xml_path(model_path())
         self.data = mujoco.MjData(self.model)
@@ -219,11 +220,24 @@ class NunchakuEnv(gym.Env):
         self._ref = [p["hand_x"], p["hand_z"], q0]
         mujoco.mj_forward(m, d)
         self._prev_v = (0.0, 0.0, 0.0)
-        self._steps = 0
         self.estimator.reset(pivot=(0.065 + p["grip_offset"], HELD_Z), held_com=(cx, HELD_Z),
                              angle=0.0, angle_std=0.25)
         self._phi, self._omega, self._load = 0.0, 0.0, 0.0
         obs = self._observe(0.0, 0.0, 0.0, estimate=False)
+        # The robot has just picked the nunchaku up and holds still for a moment; it weighs it (the
+        # wrist's vertical load minus the hand's own weight) so the estimator's masses fit.
+        n_settle = int(round(self.settle / self.dt))
+        load = 0.0
+        hold = np.array([0.0, 0.0, 0.0, 1.0])
+        for _ in range(n_settle):
+            obs, _, terminated, _, _ = self.step(hold)
+            if terminated:
+                break
+            load += obs[7] * math.cos(obs[2]) + obs[6] * math.sin(obs[2])
+        if n_settle:
+            hand_weight = self.model.body_mass[self._hand] * 9.81
+            self.estimator.weigh(load / n_settle - hand_weight)
+        self._steps = 0
         return obs, self._info(False)
 
     def _apply_params(self, p: dict[str, float]) -> None:

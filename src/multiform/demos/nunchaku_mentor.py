@@ -1,0 +1,254 @@
+"""A scripted mentor that flips the nunchaku in ``multiform/Nunchaku-v0``, as a person would teach it.
+
+It stands in for a person watching the scene: it reads the true rod angles from ``info["scene"]``
+(the robot never does), acts with human-like imprecision — reaction delay, timing jitter, amplitude
+noise, a little tremor — and sometimes fumbles on purpose so that the dataset holds failed
+sub-procedures too. Every sample is tagged with the transition of the bundled skill
+(``skills/nunchaku.yaml``) the mentor is executing, and every segment is labelled success or failure
+from what the mentor saw happen next.
+
+The maneuver (parameters in :class:`FlipParameters`) was found offline by CMA-ES over this
+parameterisation, maximising the flip rate over randomised nunchaku and timing noise; the numbers
+are committed here, nothing is searched at import or run time.
+
+1. **t0 start** — phase-locked pumping: hand velocity ``-k sin(angle)`` (angle of the free rod in
+   the world) while the swing energy is below a target, wrist held tilted at ``q_swing`` so the
+   held rod points up, out of the free rod's way.
+2. **t1 swing** — when the energy is high enough and the free rod passes ``flick_angle`` moving
+   towards +x, a flick: a half-sine hand stroke towards -x with a wrist stroke, whipping the free
+   rod up over the hand.
+3. **t2 release** — when the free rod passes ``release_angle`` (relative to the hand) faster than
+   ``release_rate``, the magnet lets go; the hand strokes and turns the wrist by ``turn`` (a
+   minimum-jerk turn) so the back of the hand meets the chain, and the magnet is re-armed.
+4. **t3 back-palm contact control** — from the first touch on the back of the hand the same stroke
+   and turn continue while the chain rolls over the back of the palm.
+5. **t4 regrasp** — the magnet catches the formerly free rod; the hand brakes and holds it.
+6. **t5 success stop** — the rod has been held for ``hold_time``.
+
+Failure transitions: **t6** (no release after the flick), **t7** (nothing caught after the
+release), **t8** (the wrong rod caught, or the catch lost).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+from typing import Any
+
+import numpy as np
+
+from .episode import Episode, SegmentLabel
+
+_OMEGA2 = 34.5        # small-oscillation frequency squared of the free part [1/s^2], for the energy
+
+
+@dataclass(frozen=True)
+class FlipParameters:
+    """The flip maneuver (found by CMA-ES in simulation; see the module docstring)."""
+
+    pump_gain: float = 1.049          # hand speed per unit sin(angle) while pumping [m/s]
+    flick_energy: float = 0.594       # normalised swing energy 1 - cos(a) + w^2/(2 W^2) that arms the flick
+    q_swing: float = -1.165            # wrist angle held while swinging [rad]
+    flick_angle: float = -0.439       # world angle of the free rod that starts the flick [rad]
+    flick_speed: float = 3.0         # peak hand speed of the flick stroke, towards -x [m/s]
+    flick_time: float = 0.283         # duration of the flick stroke [s]
+    flick_wrist: float = 3.473        # peak wrist rate of the flick stroke [rad/s]
+    release_angle: float = 2.314      # free-rod angle relative to the hand at release [rad]
+    release_rate: float = 7.55        # least free-rod rate relative to the hand at release [rad/s]
+    stroke_x: float = -1.82          # peak hand velocity along x after release [m/s]
+    stroke_z: float = -0.322           # peak hand velocity along z after release [m/s]
+    stroke_time: float = 0.328        # duration of the post-release stroke [s]
+    turn_delay: float = 0.255         # wrist turn starts this long after release [s]
+    turn_time: float = 0.316          # duration of the wrist turn [s]
+    turn: float = -4.0              # wrist turn [rad]
+    rearm: float = 0.238             # magnet re-armed this long after release [s]
+
+    def vector(self) -> np.ndarray:
+        return np.array([getattr(self, f.name) for f in fields(self)])
+
+
+def half_sine(t: float, duration: float) -> float:
+    """A half-sine stroke of unit peak over [0, duration]."""
+    return math.sin(math.pi * t / duration) if 0.0 <= t <= duration else 0.0
+
+
+def min_jerk_rate(t: float, duration: float) -> float:
+    """Velocity of a minimum-jerk move of unit size over [0, duration]."""
+    if t < 0.0 or t > duration:
+        return 0.0
+    s = t / duration
+    return 30.0 * s * s * (1.0 - s) * (1.0 - s) / duration
+
+
+class NunchakuMentor:
+    """Scripted mentor for ``multiform/Nunchaku-v0`` implementing the :class:`~multiform.demos.episode.Mentor` protocol.
+
+    ``failure_rate`` is the probability that a demonstration contains a deliberate fumble (an early
+    or late release, a weak flick, a short wrist turn, a late re-arm of the magnet); ``noise`` scales
+    all human-like imprecision (0 = a perfectly repeatable robot, 1 = the default person).
+    ``accel`` and ``wrist_accel`` bound how fast the mentor's hand can change velocity [m/s^2,
+    rad/s^2] — the bundled skill's safety section uses the same numbers.
+    """
+
+    name = "nunchaku-scripted"
+    FUMBLES = ("early_release", "late_release", "weak_flick", "short_turn", "late_rearm")
+
+    def __init__(self, params: FlipParameters | None = None, failure_rate: float = 0.3, noise: float = 1.0,
+                 accel: float = 40.0, wrist_accel: float = 400.0, hold_time: float = 0.5,
+                 max_swing_time: float = 8.0):
+        self.params = params or FlipParameters()
+        self.failure_rate = float(failure_rate)
+        self.noise = float(noise)
+        self.accel = float(accel)
+        self.wrist_accel = float(wrist_accel)
+        self.hold_time = float(hold_time)
+        self.max_swing_time = float(max_swing_time)
+        self.reset(np.zeros(15), np.random.default_rng(0))
+
+    # ---------------------------------------------------------------- protocol
+    def reset(self, obs: np.ndarray, rng: np.random.Generator) -> None:
+        """Draw this demonstration's imprecision and (maybe) its fumble."""
+        n = self.noise
+        p = self.params
+        jitter = {k: 1.0 + n * rng.normal(0.0, 0.04) for k in
+                  ("flick_speed", "flick_wrist", "stroke_x", "stroke_z", "turn")}
+        self.p = replace(p, **{k: getattr(p, k) * v for k, v in jitter.items()},
+                         pump_gain=p.pump_gain * (1.0 + n * rng.normal(0.0, 0.08)),
+                         flick_angle=p.flick_angle + n * rng.normal(0.0, 0.04),
+                         turn_delay=p.turn_delay + n * rng.normal(0.0, 0.008),
+                         rearm=max(0.02, p.rearm + n * rng.normal(0.0, 0.01)))
+        self.reaction = n * rng.uniform(0.0, 0.025)
+        self.tremor_scale = 0.02 * n
+        self.fumble = ""
+        if rng.random() < self.failure_rate:
+            self.fumble = str(rng.choice(self.FUMBLES))
+            p2 = self.p
+            if self.fumble == "early_release":
+                self.p = replace(p2, release_angle=p2.release_angle - rng.uniform(0.5, 0.9))
+            elif self.fumble == "late_release":
+                self.reaction += rng.uniform(0.05, 0.12)
+            elif self.fumble == "weak_flick":
+                self.p = replace(p2, flick_speed=p2.flick_speed * rng.uniform(0.35, 0.6))
+            elif self.fumble == "short_turn":
+                self.p = replace(p2, turn=p2.turn * rng.uniform(0.3, 0.55))
+            else:
+                self.p = replace(p2, rearm=p2.rearm + rng.uniform(0.35, 0.6))
+        self.rng = rng
+        self.cmd = [0.0, 0.0, 0.0, 1.0]
+        self.tremor = 0.0
+        self.tag = "t0"
+        self.phase = "pump"
+        self.t_flick = None
+        self.t_armed = None           # the mentor saw the release point and is about to let go
+        self.t_release = None
+        self.t_catch = None
+        self.t_end = None
+        self.prev_angle = None
+        self.done = False
+        self.events: dict[str, Any] = {"flick": None, "release": None, "back_touch": None, "catch": None,
+                                       "caught": "", "held_until": None, "outcome": ""}
+
+    def finished(self) -> bool:
+        return self.done
+
+    def act(self, obs: np.ndarray, info: dict[str, Any], t: float) -> tuple[np.ndarray, str]:
+        """The command for this sample and the transition being executed."""
+        p = self.p
+        sc = info.get("scene") or {}
+        if not sc:                     # diverged: nothing to see, stop
+            self.done = True
+            return np.array(self.cmd), self.tag
+        x, z, q = float(obs[0]), float(obs[1]), float(obs[2])
+        rel = sc["free_angle"]
+        rate = sc["free_rate"]
+        world = rel + q
+        world = math.atan2(math.sin(world), math.cos(world))
+        tx, tz, tq, tm = 0.0, -3.0 * z, 0.0, 1.0
+        if self.phase == "pump":
+            energy = 1.0 - math.cos(world) + rate * rate / (2.0 * _OMEGA2)
+            gain = p.pump_gain * min(1.0, max(0.0, (p.flick_energy - energy) / 0.1 + 1.0)) \
+                if energy < p.flick_energy else 0.0
+            tx = -gain * math.sin(world) - 1.5 * x
+            tq = -8.0 * (q - p.q_swing)
+            crossed = self.prev_angle is not None and self.prev_angle < p.flick_angle <= world
+            if energy >= 0.97 * p.flick_energy and crossed and rate > 0.0:
+                self.phase, self.t_flick, self.tag = "flick", t, "t1"
+                self.events["flick"] = t
+            if t > self.max_swing_time:
+                self._give_up("t6", t)
+            self.prev_angle = world
+        if self.phase == "flick":
+            tau = t - self.t_flick
+            tx = -p.flick_speed * half_sine(tau, p.flick_time) - 1.5 * x
+            tq = -8.0 * (q - p.q_swing) + p.flick_wrist * half_sine(tau, p.flick_time)
+            if self.t_armed is None and rel >= p.release_angle and sc["free_rate"] >= p.release_rate:
+                self.t_armed = t
+            if self.t_armed is not None and t - self.t_armed >= self.reaction:
+                self.phase, self.t_release, self.tag = "release", t, "t2"
+                self.events["release"] = t
+            elif tau > p.flick_time + 0.8:
+                self._give_up("t6", t)
+        if self.phase == "release":
+            tau = t - self.t_release
+            tm = 1.0 if tau > p.rearm else 0.0
+            tx = p.stroke_x * half_sine(tau, p.stroke_time) - 1.0 * x
+            tz = p.stroke_z * half_sine(tau, p.stroke_time) - 1.0 * z
+            tq = p.turn * min_jerk_rate(tau - p.turn_delay, p.turn_time)
+            if sc["back_touch"] > 0.5 and self.events["back_touch"] is None:
+                self.events["back_touch"] = t
+                self.tag = "t3"
+            held = sc["held"]
+            if held and tau > p.rearm:
+                self.events["catch"], self.events["caught"] = t, held
+                self.t_catch = t
+                if held == "b":
+                    self.phase, self.tag = "hold", "t4"
+                else:
+                    self.phase, self.tag = "hold", "t4"
+            elif tau > 1.5:
+                self._give_up("t7", t)
+        if self.phase == "hold":
+            tx, tz, tq, tm = -2.0 * x, -2.0 * z, 0.0, 1.0
+            held = sc["held"]
+            if held != "b" and t - self.t_catch > 0.1:
+                self.events["outcome"] = "wrong rod" if held else "dropped"
+                self._give_up("t8", t)
+            elif held == "b" and t - self.t_catch >= self.hold_time:
+                self.events["held_until"] = t
+                self.events["outcome"] = "success"
+                self.phase, self.tag, self.t_end = "stop", "t5", t + 0.05
+        if self.phase in ("stop", "gave_up"):
+            tx, tz, tq = -2.0 * x, -2.0 * z, 0.0
+            tm = self.cmd[3] if self.phase == "gave_up" else 1.0
+            if t >= self.t_end:
+                self.done = True
+        # a person's hand: bounded acceleration and a slow tremor
+        self.tremor += 0.002 * (self.rng.standard_normal() * self.tremor_scale * 30.0 - self.tremor)
+        c = self.cmd
+        a, wa = self.accel * 0.001, self.wrist_accel * 0.001
+        c[0] += max(-a, min(a, tx + self.tremor - c[0]))
+        c[1] += max(-a, min(a, tz - c[1]))
+        c[2] += max(-wa, min(wa, tq - c[2]))
+        c[3] = tm
+        return np.array(c), self.tag
+
+    def _give_up(self, tag: str, t: float) -> None:
+        self.phase, self.tag, self.t_end = "gave_up", tag, t + 0.05
+        if not self.events["outcome"]:
+            self.events["outcome"] = {"t6": "no release", "t7": "nothing caught"}.get(tag, "failure")
+
+    def label(self, episode: Episode) -> list[SegmentLabel]:
+        """Success or failure of every segment, judged from what happened next."""
+        ev = self.events
+        ok_flip = ev["outcome"] == "success"
+        verdict = {
+            "t0": ev["flick"] is not None,                       # the swing built up to the flick
+            "t1": ev["release"] is not None,                     # the flick sent the rod over
+            "t2": ev["back_touch"] is not None and ok_flip,      # released well: chain over the back
+            "t3": ok_flip,                                       # contact control led to the catch
+            "t4": ok_flip,                                       # the right rod, caught and held
+            "t5": ok_flip,
+            "t6": False, "t7": False, "t8": False,
+        }
+        return [SegmentLabel(s, e, tag, bool(verdict.get(tag, False)), labeller=self.name)
+                for s, e, tag in episode.segments()]
