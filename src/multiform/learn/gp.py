@@ -66,6 +66,7 @@ MODES = ("exact", "sparse")
 _BATCH = 1024
 _PROBE = 300
 _LOG_2PI = float(np.log(2.0 * np.pi))
+_mul, _sub, _exp, _dot = np.multiply, np.subtract, np.exp, np.dot
 # log-space bounds (standardised inputs and outputs)
 _BOUNDS_LENGTH = (np.log(1e-2), np.log(1e3))
 _BOUNDS_SF = (np.log(1e-2), np.log(1e2))
@@ -288,8 +289,8 @@ class GPLaw(BaseEstimator, RegressorMixin):
 
     def _load_state(self, x: np.ndarray) -> np.ndarray:
         uh = self._uh
-        np.multiply(x, self._w, out=uh)
-        np.subtract(uh, self._b, out=uh)
+        _mul(x, self._w, uh)                 # positional out: ≈ 0.3 µs less per call than out=
+        _sub(uh, self._b, uh)
         self._ua[self._d1] = -0.5 * uh.dot(uh)
         return self._ua
 
@@ -304,8 +305,8 @@ class GPLaw(BaseEstimator, RegressorMixin):
             buf, Zaug, W = self._sbuf, self._sZaug, self._sB
         else:
             buf, Zaug, W = self._buf, self._Zaug, self._A
-        np.dot(Zaug, ua, out=buf)
-        np.exp(buf, out=buf)
+        _dot(Zaug, ua, buf)
+        _exp(buf, buf)
         r = buf.dot(W)
         r += self.y_mean_
         return r
@@ -316,22 +317,22 @@ class GPLaw(BaseEstimator, RegressorMixin):
         ua = self._load_state(x)
         if self._exact_var:
             buf = self._buf
-            np.dot(self._Zaug, ua, out=buf)
-            np.exp(buf, out=buf)
+            _dot(self._Zaug, ua, buf)
+            _exp(buf, buf)
             mean = buf.dot(self._A)
             mean += self.y_mean_
             v = blas.dtrsv(self.chol_, buf, lower=1)
             var = self._sf2 - v.dot(v)
             return mean, (var if var > 0.0 else 0.0) * self._var_scale
         sbuf = self._sbuf
-        np.dot(self._sZaug, ua, out=sbuf)
-        np.exp(sbuf, out=sbuf)
+        _dot(self._sZaug, ua, sbuf)
+        _exp(sbuf, sbuf)
         if self._sparse_mean:
             mean = sbuf.dot(self._sB)
         else:
             buf = self._buf
-            np.dot(self._Zaug, ua, out=buf)
-            np.exp(buf, out=buf)
+            _dot(self._Zaug, ua, buf)
+            _exp(buf, buf)
             mean = buf.dot(self._A)
         mean += self.y_mean_
         var = self._sf2 - sbuf.dot(blas.dsymv(1.0, self._sM, sbuf, lower=1))
