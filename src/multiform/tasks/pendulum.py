@@ -125,7 +125,51 @@ def ablations(model, out, cfg) -> list:
     ]
 
 
+def _exercises(model, rng) -> list:
+    """The robot exercising its learned maneuvers alone: swinging from hanging, balancing from near
+    upright (each law on a one-transition net; no switching rule, so nothing of the mentor's)."""
+    import yaml
+
+    from ..petri.skillfile import parse_skill, skill_to_data
+    from ..runtime.executor import Executor
+    apn = model.history.version(0)
+    laws = model.laws()
+    data = skill_to_data(apn)
+    out = []
+    for law, options, seconds in (
+            ("swing_up", {"randomize": True}, 8.0),
+            ("balance", {"randomize": True, "theta0": float(rng.uniform(-0.3, 0.3)),
+                         "omega0": float(rng.uniform(-0.8, 0.8))}, 3.0)) * 3:
+        d = {k: data[k] for k in ("skill", "variables", "derived", "commands", "laws", "safety") if k in data}
+        d.update(places={"A": {}, "B": {}, "end": {"final": "success"}}, initial_marking={"A": 1},
+                 transitions={"go": {"in": ["A"], "out": ["B"], "law": law, "condition": "true"},
+                              "stop": {"in": ["B"], "out": ["end"], "condition": "false"}})
+        net = parse_skill(yaml.safe_dump(d))
+        out.append((lambda env, inv, net=net: Executor(net, env, laws, inverse_model=inv), dict(options), seconds))
+        if law == "balance":
+            options["theta0"] = float(rng.uniform(-0.3, 0.3))
+    return out
+
+
 def train_inverse_model(model, seed: int = 0, log=print) -> dict[str, Any]:
-    """The auxiliary inverse model from the arm's own babbling (see multiform.learn.inverse)."""
-    from ..learn.inverse import train_arm_inverse_model
-    return train_arm_inverse_model(model, seed=seed, log=log)
+    """The auxiliary inverse model from the arm's own babbling (:mod:`.arm_babbling`), saved into
+    the model directory, with its tracking error beside the reference controller's."""
+    import gymnasium as gym
+
+    import multiform.envs  # noqa: F401
+    from ..envs.osc import ReferenceController
+    from .arm_babbling import tracking_error, train_inverse
+    make = lambda: gym.make(ENV_ID, action_mode="torque")  # noqa: E731
+    inv, info = train_inverse(make, seed=seed, exercises=lambda rng: _exercises(model, rng), log=log)
+    inv.save(model.path / "inverse_model.npz")
+    env = make()
+    try:
+        ref = tracking_error(env, ReferenceController(), 10.0, seed=seed + 77)
+        lrn = tracking_error(env, inv, 10.0, seed=seed + 77)
+    finally:
+        env.close()
+    info["tracking"] = {"learned": lrn, "reference": ref,
+                        "ratio": lrn["velocity_rms"] / max(ref["velocity_rms"], 1e-9)}
+    log(f"  tracking held-out commands: learned {lrn['velocity_rms']:.4f} m/s RMS, reference "
+        f"{ref['velocity_rms']:.4f} m/s RMS (ratio {info['tracking']['ratio']:.2f})")
+    return info
