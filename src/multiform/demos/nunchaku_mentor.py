@@ -84,14 +84,14 @@ class NunchakuMentor:
     """Scripted mentor for ``multiform/Nunchaku-v0`` implementing the :class:`~multiform.demos.episode.Mentor` protocol.
 
     ``failure_rate`` is the probability that a demonstration contains a deliberate fumble (an early
-    or late release, a weak flick, a short wrist turn, a late re-arm of the magnet); ``noise`` scales
+    or late release, a weak flick, a wrist turned the wrong way, a late re-arm of the magnet); ``noise`` scales
     all human-like imprecision (0 = a perfectly repeatable robot, 1 = the default person).
     ``accel`` and ``wrist_accel`` bound how fast the mentor's hand can change velocity [m/s^2,
     rad/s^2] — the bundled skill's safety section uses the same numbers.
     """
 
     name = "nunchaku-scripted"
-    FUMBLES = ("early_release", "late_release", "weak_flick", "short_turn", "late_rearm")
+    FUMBLES = ("early_release", "late_release", "weak_flick", "wrong_turn", "late_rearm")
 
     def __init__(self, params: FlipParameters | None = None, failure_rate: float = 0.3, noise: float = 1.0,
                  accel: float = 40.0, wrist_accel: float = 400.0, hold_time: float = 0.5,
@@ -119,20 +119,22 @@ class NunchakuMentor:
                          rearm=max(0.02, p.rearm + n * rng.normal(0.0, 0.01)))
         self.reaction = n * rng.uniform(0.0, 0.025)
         self.tremor_scale = 0.02 * n
+        self.wobble_scale = 0.12 * n      # the wrist is held only roughly at its set point [rad]
+        self.wobble = n * rng.normal(0.0, 0.12)
         self.fumble = ""
         if rng.random() < self.failure_rate:
             self.fumble = str(rng.choice(self.FUMBLES))
             p2 = self.p
             if self.fumble == "early_release":
-                self.p = replace(p2, release_angle=p2.release_angle - rng.uniform(0.5, 0.9))
+                self.p = replace(p2, release_angle=p2.release_angle - rng.uniform(1.0, 1.6))
             elif self.fumble == "late_release":
-                self.reaction += rng.uniform(0.05, 0.12)
+                self.reaction += rng.uniform(0.08, 0.15)
             elif self.fumble == "weak_flick":
-                self.p = replace(p2, flick_speed=p2.flick_speed * rng.uniform(0.35, 0.6))
-            elif self.fumble == "short_turn":
-                self.p = replace(p2, turn=p2.turn * rng.uniform(0.3, 0.55))
+                self.p = replace(p2, flick_speed=p2.flick_speed * rng.uniform(0.2, 0.45))
+            elif self.fumble == "wrong_turn":
+                self.p = replace(p2, turn=-p2.turn * rng.uniform(0.4, 0.7))
             else:
-                self.p = replace(p2, rearm=p2.rearm + rng.uniform(0.35, 0.6))
+                self.p = replace(p2, rearm=p2.rearm + rng.uniform(0.5, 0.9))
         self.rng = rng
         self.cmd = [0.0, 0.0, 0.0, 1.0]
         self.tremor = 0.0
@@ -169,7 +171,7 @@ class NunchakuMentor:
             gain = p.pump_gain * min(1.0, max(0.0, (p.flick_energy - energy) / 0.1 + 1.0)) \
                 if energy < p.flick_energy else 0.0
             tx = -gain * math.sin(world) - 1.5 * x
-            tq = -8.0 * (q - p.q_swing)
+            tq = -8.0 * (q - p.q_swing - self.wobble)
             crossed = self.prev_angle is not None and self.prev_angle < p.flick_angle <= world
             if energy >= 0.97 * p.flick_energy and crossed and rate > 0.0:
                 self.phase, self.t_flick, self.tag = "flick", t, "t1"
@@ -205,7 +207,7 @@ class NunchakuMentor:
                     self.phase, self.tag = "hold", "t4"
                 else:
                     self.phase, self.tag = "hold", "t4"
-            elif tau > 1.5:
+            elif tau > 1.5 or (not held and max(sc["rod_a"][1], sc["rod_b"][1]) < sc["hand_z_world"] - 0.35):
                 self._give_up("t7", t)
         if self.phase == "hold":
             tx, tz, tq, tm = -2.0 * x, -2.0 * z, 0.0, 1.0
@@ -222,8 +224,9 @@ class NunchakuMentor:
             tm = self.cmd[3] if self.phase == "gave_up" else 1.0
             if t >= self.t_end:
                 self.done = True
-        # a person's hand: bounded acceleration and a slow tremor
+        # a person's hand: bounded acceleration, a slow tremor, a wandering wrist set point
         self.tremor += 0.002 * (self.rng.standard_normal() * self.tremor_scale * 30.0 - self.tremor)
+        self.wobble += -0.002 * self.wobble + self.wobble_scale * 0.063 * self.rng.standard_normal()
         c = self.cmd
         a, wa = self.accel * 0.001, self.wrist_accel * 0.001
         c[0] += max(-a, min(a, tx + self.tremor - c[0]))

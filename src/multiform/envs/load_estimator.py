@@ -49,8 +49,9 @@ class LoadEstimator:
     """
 
     def __init__(self, m_hand: float = 0.35, m_held: float = 0.2, m_chain: float = 0.06, l_chain: float = 0.12,
-                 m_rod: float = 0.2, l_rod: float = 0.30, damping: float = 0.0005, accel_noise: float = 80.0,
-                 force_noise: float = 0.3, force_rel: float = 0.08, gate: float = 50.0, jacobian_every: int = 2):
+                 m_rod: float = 0.2, l_rod: float = 0.30, damping: float = 0.0005, accel_noise: float = 40.0,
+                 force_noise: float = 0.6, force_rel: float = 0.08, gate: float = 50.0, jacobian_every: int = 2,
+                 rod_accel_noise: float | None = None):
         self.m_hand = m_hand
         self.m_held = m_held
         self.m_chain = m_chain
@@ -63,6 +64,7 @@ class LoadEstimator:
         self.force_rel = force_rel
         self.gate = gate
         self.jacobian_every = jacobian_every
+        self.rod_accel_noise = rod_accel_noise
         self._nominal_masses = (m_held, m_chain, m_rod)
         self._constants()
         self.reset()
@@ -191,6 +193,7 @@ class LoadEstimator:
         a33 = p33 + dt * (v0 * p03 + v1 * p13 + v2 * p23 + v3 * p33)
         # P = A F^T + Q
         qn = (self.accel_noise * dt) ** 2
+        qr = qn if self.rod_accel_noise is None else (self.rod_accel_noise * dt) ** 2
         n00 = a00 + dt * a02
         n01 = a01 + dt * a03
         n02 = a02 + dt * (u0 * a00 + u1 * a01 + u2 * a02 + u3 * a03)
@@ -200,7 +203,7 @@ class LoadEstimator:
         n13 = a13 + dt * (v0 * a10 + v1 * a11 + v2 * a12 + v3 * a13)
         n22 = a22 + dt * (u0 * a20 + u1 * a21 + u2 * a22 + u3 * a23) + qn
         n23 = a23 + dt * (v0 * a20 + v1 * a21 + v2 * a22 + v3 * a23)
-        n33 = a33 + dt * (v0 * a30 + v1 * a31 + v2 * a32 + v3 * a33) + qn
+        n33 = a33 + dt * (v0 * a30 + v1 * a31 + v2 * a32 + v3 * a33) + qr
         # measurement update: H rows hxr, hzr;  S = H P H^T + R
         h0, h1, h2, h3 = hxr
         g0, g1, g2, g3 = hzr

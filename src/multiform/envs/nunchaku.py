@@ -88,7 +88,8 @@ KP_ROT, KV_ROT = 100.0, 2.0          # wrist servo gains, N m/rad and N m s/rad
 HOME = (0.0, 1.0)                  # workspace centre (world x, z) [m]
 WORKSPACE = 0.5                    # |hand_x|, |hand_z| limit of the reference [m]
 PROX_RANGE = 0.1
-_BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
+_BAD = tuple(int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
+                                mujoco.mjtWarning.mjWARN_BADQACC))
 
 RANGES = {"rod_mass": (0.9, 1.1), "rod_length": (0.93, 1.07), "chain_damping": (0.0005, 0.002),
           "friction": (0.8, 1.2), "hand_x": (-0.03, 0.03), "hand_z": (-0.03, 0.03),
@@ -220,6 +221,7 @@ class NunchakuEnv(gym.Env):
         self._ref = [p["hand_x"], p["hand_z"], q0]
         mujoco.mj_forward(m, d)
         self._prev_v = (0.0, 0.0, 0.0)
+        self.estimator.weigh(9.81 * 0.46)          # nominal masses until the nunchaku is weighed
         self.estimator.reset(pivot=(0.065 + p["grip_offset"], HELD_Z), held_com=(cx, HELD_Z),
                              angle=0.0, angle_std=0.25)
         self._phi, self._omega, self._load = 0.0, 0.0, 0.0
@@ -286,10 +288,12 @@ class NunchakuEnv(gym.Env):
         ctrl[a[1]] = KP_LIN * (rz - z) + KV_LIN * (vz - qvel[self._vz])
         ctrl[a[2]] = KP_ROT * (rq - q) + KV_ROT * (wq - qvel[self._vq])
         self._magnet(magnet)
-        nbad = d.warning[_BADQACC].number
+        warn = d.warning
+        nbad = warn[_BAD[0]].number + warn[_BAD[1]].number + warn[_BAD[2]].number
         mujoco.mj_step(m, d)
         self._steps += 1
-        diverged = d.warning[_BADQACC].number != nbad or not (np.isfinite(d.qvel).all() and abs(d.qvel).max() < 1e4)
+        diverged = (warn[_BAD[0]].number + warn[_BAD[1]].number + warn[_BAD[2]].number != nbad
+                    or not (np.isfinite(d.qvel).all() and abs(d.qvel).max() < 1e4))
         if diverged:
             obs = np.zeros(len(OBSERVATION_NAMES))
             info = {"diverged": True, "dropped": False, "scene": {}, "truth": {}}
