@@ -34,7 +34,7 @@ from .demos.dataset import read_dataset
 from .demos.episode import Episode
 from .errors import InvalidInput
 from .io import read_json, write_json
-from .learn.condition import LearnedCondition, load_condition
+from .learn.condition import load_condition
 from .learn.gp import GPLaw
 from .learn.judge import Judge, TrialGrade, grade_episode
 from .learn.labels import LabelStore
@@ -216,17 +216,12 @@ class ModelLearners:
         return len(d.switch_states) >= 3 and len(d.negatives) >= 10
 
     def switch_condition(self, apn: APN, transition: str) -> tuple[str, dict[str, Any]]:
+        from .learn.training import fit_switch_condition
         names = self.switch_variables(apn, transition)
-        d = switch_data(apn, self.model.episodes, transition, names)
-        cond = LearnedCondition(input_names=names, random_state=self.seed).fit_switches(d.positives, d.negatives)
+        cond, info = fit_switch_condition(apn, self.model.episodes, transition, names, seed=self.seed)
         name = self._fresh(f"{transition}_switch")
         self.model.save_condition(name, cond)
-        hit = float(np.mean(cond.holds(d.switch_states))) if len(d.switch_states) else float("nan")
-        fp = float(np.mean(cond.holds(d.negatives))) if len(d.negatives) else float("nan")
-        return name, {"model": name, "variables": list(names), "mentor_switches": int(len(d.switch_states)),
-                      "positives": int(len(d.positives)), "negatives": int(len(d.negatives)),
-                      "support_vectors": int(cond.n_support_), "holds_at_switches": round(hit, 4),
-                      "holds_far_from_switches": round(fp, 4)}
+        return name, {"model": name, **info}
 
     def _regions(self) -> PlaceRegions:
         r = self.model.regions()

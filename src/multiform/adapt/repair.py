@@ -3,8 +3,9 @@
 1. **Λ adjustment** — a transition chosen by λ over siblings at a choice point in failed trials gets
    its λ halved; its siblings share the rest (only where λ had a real choice: otherwise Λ cannot help).
 2. **Condition relearning** — a transition that never fired because its condition never held while
-   it was enabled, and that is the only way from its place to where it leads (so Λ cannot help),
-   gets a condition learned from the demonstrations (the mentor's switching states).
+   it was enabled, that leads to a place practice never reached, and that is the only way from its
+   place to there (so Λ cannot help), gets a condition learned from the demonstrations (the
+   mentor's switching states).
 3. **Transition back** — when the state left its place and matches another place's region, and no
    transition goes there, a transition to that place is added, run by that place's law, firing when
    the state belongs to that place rather than its own (the paper's t7).
@@ -104,6 +105,11 @@ def relearn_condition(apn: APN, d: Diagnosis, learners: Learners) -> Repair | No
             continue
         t = apn.transition(tid)
         if t.condition.is_learned:      # already learned from the demonstrations; relearning gives the same
+            continue
+        # it must be the way to somewhere practice never got: a place never visited (the paper's P2)
+        # or the success place; a self-loop that never fired explains nothing
+        if not any(p in d.never_visited or apn.place(p).final == "success" for p in t.outputs) \
+                or set(t.outputs) <= set(t.inputs):
             continue
         if not _leads_to_success(apn, tid) or not _only_way(apn, tid):
             continue

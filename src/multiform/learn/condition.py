@@ -90,7 +90,7 @@ class LearnedCondition(BaseEstimator):
         self.n_features_in_ = X.shape[1]
         self.estimator_ = model
         self.decision_ = FastDecision.from_sklearn(model)
-        self.train_rates_ = self.rates(X, y)
+        self.train_rates_ = self.rates(X[idx], y[idx])    # on the rows it was fitted on (all rows can be 10⁵⁺)
         return self
 
     def fit_switches(self, positives: np.ndarray, negatives: np.ndarray) -> LearnedCondition:

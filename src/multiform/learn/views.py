@@ -38,27 +38,10 @@ def value_matrix(apn: APN, ep: Episode, names: Sequence[str]) -> np.ndarray:
     for v in apn.variables:
         if v in obs_index:
             cols[v] = ep.obs[:, obs_index[v]]
-    if apn.derived:
-        order = list(apn.variables) + list(apn.derived)
-        slots = {k: i for i, k in enumerate(order)}
-        fns = [(slots[k], g.compile(slots)) for k, g in apn.derived.items()]
-        base = np.zeros((n, len(order)))
-        for k, v in enumerate(apn.variables):
-            if v in cols:
-                base[:, k] = cols[v]
-        for row in base:
-            vals = row.tolist()
-            for slot, f in fns:
-                try:
-                    vals[slot] = f(vals)
-                except (ArithmeticError, ValueError):
-                    vals[slot] = np.nan
-            row[:] = vals
-        for k, v in enumerate(order):
-            cols[v] = base[:, k]
     t = np.arange(n) * ep.dt
     cols["time"] = t
-    wanted_clock = [x for x in names if x.startswith(("dwell_", "fires_"))]
+    wanted = set(names) | {v for g in apn.derived.values() for v in g.variables}
+    wanted_clock = sorted(x for x in wanted if x.startswith(("dwell_", "fires_")))
     if wanted_clock:
         segs = ep.segments()
         for x in wanted_clock:
@@ -76,6 +59,8 @@ def value_matrix(apn: APN, ep: Episode, names: Sequence[str]) -> np.ndarray:
                         count += 1
                     col[s:e] = count
             cols[x] = col
+    for name, g in apn.derived.items():
+        cols[name] = g.evaluate_arrays({v: cols[v] for v in g.variables if v in cols})
     missing = [x for x in names if x not in cols]
     if missing:
         raise KeyError(f"episode has no value for {', '.join(missing)}")

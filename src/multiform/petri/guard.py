@@ -21,6 +21,8 @@ import operator
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
 Values = Sequence[float]
 Compiled = Callable[[Values], float]
 
@@ -94,6 +96,14 @@ class Guard:
         names = sorted(self.variables)
         f = self.compile({n: i for i, n in enumerate(names)})
         return f([env[n] for n in names])
+
+    def evaluate_arrays(self, columns: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Evaluate over whole columns at once (recorded data, not the 1 kHz path): numpy semantics,
+        NaN where a function is undefined (``sqrt`` of a negative number)."""
+        n = len(next(iter(columns.values()))) if columns else 1
+        with np.errstate(all="ignore"):
+            out = _vector(self.tree, columns)
+        return np.broadcast_to(np.asarray(out, dtype=np.float64), (n,)).copy()
 
     @property
     def is_true(self) -> bool:
@@ -308,6 +318,38 @@ def _compile(t: tuple, slots: Mapping[str, int]) -> Compiled:
             f1, f2 = fs
             return lambda v: impl(f1(v), f2(v))
         return lambda v: impl(*[f(v) for f in fs])
+    raise AssertionError(kind)
+
+
+_VECTOR_FUNCS: dict[str, Callable[..., np.ndarray]] = {
+    "abs": np.abs, "min": lambda *a: np.minimum.reduce(np.broadcast_arrays(*a)),
+    "max": lambda *a: np.maximum.reduce(np.broadcast_arrays(*a)), "sqrt": np.sqrt, "sin": np.sin, "cos": np.cos,
+    "atan2": np.arctan2, "exp": np.exp,
+    "wrap_angle": lambda a: np.where((w := np.mod(a + np.pi, 2 * np.pi)) <= 0, w + 2 * np.pi, w) - np.pi,
+}
+
+
+def _vector(t: tuple, cols: Mapping[str, np.ndarray]):
+    kind = t[0]
+    if kind == "const":
+        return np.float64(t[1])
+    if kind == "var":
+        return np.asarray(cols[t[1]], dtype=np.float64)
+    if kind == "neg":
+        return -_vector(t[1], cols)
+    if kind == "not":
+        return np.logical_not(_vector(t[1], cols))
+    if kind == "bin":
+        return t[1](_vector(t[2], cols), _vector(t[3], cols))
+    if kind == "cmp":
+        vals = [_vector(x, cols) for x in t[2]]
+        return np.logical_and.reduce([op(a, b) for op, a, b in zip(t[1], vals, vals[1:])])
+    if kind == "and":
+        return np.logical_and.reduce([_vector(x, cols) for x in t[1]])
+    if kind == "or":
+        return np.logical_or.reduce([_vector(x, cols) for x in t[1]])
+    if kind == "call":
+        return _VECTOR_FUNCS[t[1]](*[_vector(x, cols) for x in t[2]])
     raise AssertionError(kind)
 
 

@@ -13,6 +13,7 @@ terminates on divergence, ends the trial as ``diverged`` (a failure), never a cr
 
 from __future__ import annotations
 
+import math
 import operator
 import time as _time
 from collections.abc import Mapping
@@ -149,11 +150,18 @@ class Executor:
             if len(runner.firings) != n_fired:
                 n_fired = len(runner.firings)
                 plan = [self._plans[name] for name in dict.fromkeys(runner.active_laws.values())]
+            bad = False
             for law, getter, buf, outs in plan:
                 buf[:] = getter(values)
                 y = law.predict_one(buf)
                 for j, i in enumerate(outs):
-                    cmd[i] = float(y[j])
+                    c = float(y[j])
+                    bad |= not math.isfinite(c)
+                    cmd[i] = c
+            if bad:                      # a law that cannot say what to do ends the trial, never the robot
+                outcome = "diverged"
+                rec_raw[k] = cmd
+                break
             rec_raw[k] = cmd
             cmd = sat.command(cmd, values, k)
             rec_cmd[k] = cmd
