@@ -54,6 +54,11 @@ def test_fast_path_equals_vectorised(regions):
 def test_conditions_for_the_repair_loop(regions, tmp_path):
     back = regions.condition("P1", rather_than="P2")                  # the paper's t7: P2 -> P1
     assert back(DISTURBED) and not back(UPRIGHT) and not back(FAR)
+    # Never while the state is still in P2's region, even where P1 scores higher (a catch just
+    # begun): a way back that held there would undo every entry into P2 at once.
+    p2 = place_states(5, n=400)["P2"]
+    inside_p2 = regions.belongs(p2, "P2")
+    assert inside_p2.mean() > 0.9 and not back.holds(p2[inside_p2]).any()
     out = regions.outside_condition()
     assert out(FAR) and not out(DISTURBED) and not out(UPRIGHT)
     X = np.concatenate([place_states(4, n=300)["P1"], [DISTURBED, UPRIGHT, FAR]])

@@ -403,6 +403,11 @@ class GPLaw(BaseEstimator, RegressorMixin):
     # -- persistence ------------------------------------------------------------------------------
     def save(self, path: str | os.PathLike) -> None:
         """Write the fitted law as arrays + JSON metadata in one ``.npz`` (atomic, no pickle)."""
+        save_npz(path, *self.to_arrays(), KIND, VERSION)
+
+    def to_arrays(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """The fitted law as named arrays and JSON metadata (what :meth:`save` writes; models that
+        embed a GP store these under a prefix of their own)."""
         check_is_fitted(self, "mode_")
         arrays = {"x_mean": self.x_mean_, "x_scale": self.x_scale_, "y_mean": self.y_mean_,
                   "y_scale": self.y_scale_, "length_scale": self.length_scale_,
@@ -420,19 +425,20 @@ class GPLaw(BaseEstimator, RegressorMixin):
                 "log_marginal_likelihood": self.log_marginal_likelihood_,
                 "heldout_nrmse": None if self.heldout_nrmse_ is None else list(map(float, self.heldout_nrmse_)),
                 "fit_seconds": self.fit_seconds_, "summary": self.summary()}
-        save_npz(path, arrays, meta, KIND, VERSION)
+        return arrays, meta
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> GPLaw:
         """Read a law written by :meth:`save`; any inconsistency raises :class:`InvalidInput`
         naming the file and the array or metadata entry."""
         arrays, meta = load_npz(path, KIND, VERSION)
-        return cls._from_arrays(arrays, meta, str(path))
+        return cls.from_arrays(arrays, meta, str(path))
 
     @classmethod
-    def _from_arrays(cls, arrays: dict[str, np.ndarray], meta: dict[str, Any], file: str) -> GPLaw:
+    def from_arrays(cls, arrays: dict[str, np.ndarray], meta: dict[str, Any], file: str, prefix: str = "") -> GPLaw:
+        """Inverse of :meth:`to_arrays`; problems name ``file`` and the entry (under ``prefix``)."""
         def fail(element: str, msg: str) -> InvalidInput:
-            return InvalidInput(msg, file=file, element=element)
+            return InvalidInput(msg, file=file, element=prefix + element)
 
         try:
             params = dict(meta["params"])
@@ -462,20 +468,20 @@ class GPLaw(BaseEstimator, RegressorMixin):
         problems = []
         for key, shape in expected.items():
             if key not in arrays:
-                problems.append(Problem(file, key, f"array is missing (needed by mode {mode!r})"))
+                problems.append(Problem(file, prefix + key, f"array is missing (needed by mode {mode!r})"))
                 continue
             a = arrays[key]
             if a.dtype.kind not in "fiu":
-                problems.append(Problem(file, key, f"has dtype {a.dtype}, expected float numbers"))
+                problems.append(Problem(file, prefix + key, f"has dtype {a.dtype}, expected float numbers"))
             elif a.shape != shape:
-                problems.append(Problem(file, key, f"has shape {a.shape}, expected {shape} "
+                problems.append(Problem(file, prefix + key, f"has shape {a.shape}, expected {shape} "
                                                    f"(n_train={n}, n_features={d}, n_outputs={p}, n_inducing={m})"))
             elif not np.all(np.isfinite(a)):
-                problems.append(Problem(file, key, "has non-finite values"))
+                problems.append(Problem(file, prefix + key, "has non-finite values"))
         if not problems:
             for key in ("x_scale", "y_scale", "length_scale", "hyper"):
                 if np.any(arrays[key] <= 0):
-                    problems.append(Problem(file, key, "must be positive"))
+                    problems.append(Problem(file, prefix + key, "must be positive"))
         if problems:
             raise InvalidInput(problems)
         f64 = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in arrays.items() if k in expected}

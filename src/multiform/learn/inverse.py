@@ -22,6 +22,7 @@ names its servo and loading it can never run code from the file.
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -35,35 +36,40 @@ from ..io import load_npz, save_npz
 from .gp import GPLaw
 
 KIND = "inverse_model"
-VERSION = 1
+VERSION = 2                     # 2: the residual GP's metadata nested under "gp"
 
 
 @dataclass(frozen=True)
 class Servo:
-    """A robot's fixed maneuver servo and the load features its inverse model reads."""
+    """A robot's fixed maneuver servo and the load features its inverse model reads.
+
+    ``load`` and ``basis`` take a math module and return a tuple of features: called with ``math``
+    on one observation list and one acceleration list (the 1 kHz path, plain floats: numpy on
+    arrays of one row costs microseconds per operation), or with ``numpy`` on the columns of many
+    rows (fitting) — one formula for both.
+    """
 
     accel: Callable[[np.ndarray, np.ndarray], np.ndarray]      # (obs, command) -> a (6,)
     observation_names: tuple[str, ...]
-    load: Callable[[np.ndarray], np.ndarray]                    # obs rows (m, n_obs) -> GP load inputs (m, k)
-    basis: Callable[[np.ndarray, np.ndarray], np.ndarray]       # (obs rows, accelerations) -> load features (m, b)
+    load: Callable[[Any, Sequence, Sequence], tuple]             # (math|numpy, obs, a) -> GP load inputs
+    basis: Callable[[Any, Sequence, Sequence], tuple]            # (math|numpy, obs, a) -> linear load features
 
 
 def _arm_pendulum_servo() -> Servo:
     from ..envs.osc import OBSERVATION_NAMES, task_acceleration
     ti, wi = OBSERVATION_NAMES.index("theta"), OBSERVATION_NAMES.index("omega")
 
-    def load(O: np.ndarray) -> np.ndarray:
-        th, om = O[:, ti], O[:, wi]
-        return np.stack([np.sin(th), np.cos(th), om], axis=1)
+    def load(m: Any, o: Sequence, a: Sequence) -> tuple:
+        th = o[ti]
+        return m.sin(th), m.cos(th), o[wi]
 
-    def basis(O: np.ndarray, A: np.ndarray) -> np.ndarray:
+    def basis(m: Any, o: Sequence, a: Sequence) -> tuple:
         # A rigid pendulum's pull on its pivot: gravity and centripetal terms, and its swing's
         # response to the pivot's own acceleration (a_x, a_z) through θ̈.
-        th, om = O[:, ti], O[:, wi]
-        s, c, w2 = np.sin(th), np.cos(th), om * om
-        ax, az = A[:, 0], A[:, 2]
-        return np.stack([s, c, om, w2 * s, w2 * c, s * c, c * c, ax * c * c, ax * s * c, az * s * s, az * s * c],
-                        axis=1)
+        th, om = o[ti], o[wi]
+        s, c = m.sin(th), m.cos(th)
+        w2, ax, az = om * om, a[0], a[2]
+        return s, c, om, w2 * s, w2 * c, s * c, c * c, ax * c * c, ax * s * c, az * s * s, az * s * c
 
     return Servo(lambda obs, cmd: task_acceleration(obs, float(cmd[0])), OBSERVATION_NAMES, load, basis)
 
@@ -93,15 +99,19 @@ class InverseDynamicsModel(BaseEstimator):
             raise ValueError(f"unknown servo {self.servo!r} (known: {', '.join(SERVOS)})")
         return SERVOS[self.servo]()
 
-    def _inputs(self, O: np.ndarray, A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """GP inputs ``[q, q̇, load, a]`` and linear features ``[q, q̇, a, basis]`` of observation rows."""
-        sv = self._servo() if not hasattr(self, "_sv") else self._sv
+    def _joint_index(self, sv: Servo) -> list[int]:
         names = list(sv.observation_names)
         n = self.n_joints
-        qi = [names.index(f"q{i + 1}") for i in range(n)] + [names.index(f"qd{i + 1}") for i in range(n)]
-        G = np.c_[O[:, qi], sv.load(O), A]
-        F = np.c_[O[:, qi], A, sv.basis(O, A)]
-        return G, F
+        return [names.index(f"q{i + 1}") for i in range(n)] + [names.index(f"qd{i + 1}") for i in range(n)]
+
+    def _inputs(self, O: np.ndarray, A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """GP inputs ``[q, q̇, load, a]`` and linear features ``[q, q̇, a, basis]`` of observation rows."""
+        sv = self._servo()
+        qi = self._joint_index(sv)
+        Oc, Ac = O.T, A.T
+        load = np.stack(np.broadcast_arrays(*sv.load(np, Oc, Ac)), axis=1)
+        basis = np.stack(np.broadcast_arrays(*sv.basis(np, Oc, Ac)), axis=1)
+        return np.c_[O[:, qi], load, A], np.c_[O[:, qi], A, basis]
 
     def fit(self, O: np.ndarray, A: np.ndarray, tau: np.ndarray) -> InverseDynamicsModel:
         """``O`` observation rows, ``A`` achieved task accelerations (m, 6), ``tau`` torques (m, n)."""
@@ -125,22 +135,28 @@ class InverseDynamicsModel(BaseEstimator):
 
     def _prepare(self) -> None:
         self._sv = self._servo()
-        self._inv_scale = 1.0 / self.f_scale_
-        self._row = np.empty((1, len(self._sv.observation_names)))
-        self._a = np.empty((1, 6))
+        self._qi = self._joint_index(self._sv)
+        # The linear part folded into one affine map of the raw features: τ_lin = F·W + b.
+        self._W = self.coef_[:-1] / self.f_scale_[:, None]
+        self._b = self.coef_[-1] - self.f_mean_ @ self._W
 
     def predict(self, O: np.ndarray, A: np.ndarray) -> np.ndarray:
         """Torques for observation rows ``O`` and task accelerations ``A``."""
         G, F = self._inputs(np.atleast_2d(O), np.atleast_2d(A))
-        return np.c_[(F - self.f_mean_) * self._inv_scale, np.ones(len(F))] @ self.coef_ + self.gp_.predict(G)
+        return F @ self._W + self._b + self.gp_.predict(G)
 
     def torques(self, obs: np.ndarray, command: np.ndarray) -> np.ndarray:
-        """The executor's interface: the servo's desired task acceleration, then the learned map."""
-        self._row[0] = obs
-        self._a[0] = self._sv.accel(obs, command)
-        G, F = self._inputs(self._row, self._a)
-        f = (F[0] - self.f_mean_) * self._inv_scale
-        return f @ self.coef_[:-1] + self.coef_[-1] + self.gp_.predict_one(G[0])
+        """The executor's interface: the servo's desired task acceleration, then the learned map.
+
+        One state per call at the control rate, so the features are built from plain floats
+        (:class:`Servo`) and the linear part is one precomputed affine map."""
+        sv = self._sv
+        o = obs.tolist()
+        a = sv.accel(obs, command).tolist()
+        joints = [o[i] for i in self._qi]
+        g = np.array(joints + list(sv.load(math, o, a)) + a)
+        f = np.array(joints + a + list(sv.basis(math, o, a)))
+        return f @ self._W + self._b + self.gp_.predict_one(g)
 
     def summary(self) -> dict[str, Any]:
         s = self.gp_.summary()
@@ -148,23 +164,17 @@ class InverseDynamicsModel(BaseEstimator):
 
     # -- persistence ---------------------------------------------------------------------------------
     def save(self, path: str | os.PathLike) -> None:
-        """The linear part and the GP's arrays in one ``.npz`` (no pickle)."""
-        import tempfile
-        from pathlib import Path
-        with tempfile.TemporaryDirectory() as tmp:
-            gp_file = Path(tmp) / "gp.npz"
-            self.gp_.save(gp_file)
-            with np.load(gp_file, allow_pickle=False) as z:
-                gp_arrays = {f"gp/{k}": z[k] for k in z.files}
-        arrays = {"coef": self.coef_, "f_mean": self.f_mean_, "f_scale": self.f_scale_, **gp_arrays}
+        """The linear part and the residual GP's arrays (under ``gp/``) in one ``.npz`` (no pickle)."""
+        gp_arrays, gp_meta = self.gp_.to_arrays()
+        arrays = {"coef": self.coef_, "f_mean": self.f_mean_, "f_scale": self.f_scale_,
+                  **{f"gp/{k}": v for k, v in gp_arrays.items()}}
         meta = {"servo": self.servo, "n_joints": self.n_joints, "ridge": self.ridge, "n_inducing": self.n_inducing,
-                "n_hyper": self.n_hyper, "random_state": self.random_state, "n_train": int(self.n_train_)}
+                "n_hyper": self.n_hyper, "random_state": self.random_state, "n_train": int(self.n_train_),
+                "gp": gp_meta}
         save_npz(path, arrays, meta, KIND, VERSION)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> InverseDynamicsModel:
-        import tempfile
-        from pathlib import Path
         arrays, meta = load_npz(path, KIND, VERSION)
         f = str(path)
         if meta.get("servo") not in SERVOS:
@@ -172,9 +182,9 @@ class InverseDynamicsModel(BaseEstimator):
                                element="servo")
         n = int(meta.get("n_joints", 0))
         sv = SERVOS[meta["servo"]]()
-        probe = np.zeros((1, len(sv.observation_names)))
-        d = 2 * n + 6 + sv.basis(probe, np.zeros((1, 6))).shape[1]
-        d_gp = 2 * n + 6 + sv.load(probe).shape[1]
+        probe = [0.0] * len(sv.observation_names)
+        d = 2 * n + 6 + len(sv.basis(math, probe, [0.0] * 6))
+        d_gp = 2 * n + 6 + len(sv.load(math, probe, [0.0] * 6))
         for key, shape in (("coef", (d + 1, n)), ("f_mean", (d,)), ("f_scale", (d,))):
             if key not in arrays or arrays[key].shape != shape:
                 got = arrays[key].shape if key in arrays else "missing"
@@ -182,14 +192,10 @@ class InverseDynamicsModel(BaseEstimator):
         m = cls(servo=meta["servo"], n_joints=n, ridge=float(meta["ridge"]), n_inducing=int(meta["n_inducing"]),
                 n_hyper=int(meta["n_hyper"]), random_state=int(meta["random_state"]))
         m.coef_, m.f_mean_, m.f_scale_ = arrays["coef"], arrays["f_mean"], arrays["f_scale"]
+        if not isinstance(meta.get("gp"), dict):
+            raise InvalidInput("metadata of the residual GP is missing", file=f, element="gp")
         gp_arrays = {k[3:]: v for k, v in arrays.items() if k.startswith("gp/")}
-        with tempfile.TemporaryDirectory() as tmp:
-            gp_file = Path(tmp) / "gp.npz"
-            np.savez(gp_file, **gp_arrays)
-            try:
-                m.gp_ = GPLaw.load(gp_file)
-            except InvalidInput as exc:
-                raise InvalidInput([type(p)(f, f"gp/{p.element}".rstrip("/"), p.message) for p in exc.problems]) from None
+        m.gp_ = GPLaw.from_arrays(gp_arrays, meta["gp"], f, prefix="gp/")
         if m.gp_.n_features_in_ != d_gp:
             raise InvalidInput(f"the residual GP reads {m.gp_.n_features_in_} inputs, expected {d_gp}", file=f,
                                element="gp")

@@ -242,8 +242,8 @@ class PlaceRegions(BaseEstimator):
 
     # -- conditions the repair operators add --------------------------------------------------------
     def condition(self, into: str, rather_than: str | None = None) -> RegionCondition:
-        """True when the state belongs to ``into`` (score ≥ 0.5) and, if given, scores higher for it
-        than for ``rather_than`` (the paper's t7: back from "balanced" to "swung up")."""
+        """True when the state belongs to ``into`` (score ≥ 0.5) and, if given, no longer belongs to
+        ``rather_than`` (score < 0.5) — the paper's t7: back from "balanced" to "swung up"."""
         places = [into] + ([rather_than] if rather_than else [])
         for p in places:
             if p not in self.densities_:
@@ -324,8 +324,11 @@ class RegionCondition:
     """A learned condition built from place regions (what :class:`~multiform.petri.firing.NetRunner`
     calls with one state in ``input_names`` order).
 
-    ``mode="into"``: holds when the state belongs to ``into`` and scores higher there than in
-    ``rather_than``; ``mode="outside"``: holds when no place's score reaches the threshold. Decided
+    ``mode="into"``: holds when the state belongs to ``into`` and, if ``rather_than`` is given, has
+    left that place's region (the place the token is in). Leaving is required, not merely scoring
+    higher: the first states of a stay (a balance catch just begun) can score higher for the place
+    the token came from, and a way back that fired there would undo every entry at once;
+    ``mode="outside"``: holds when no place's score reaches the threshold. Decided
     on the calibrated logits z (score = σ(z), so score ≥ 0.5 ⇔ z ≥ 0) — no exponentials saturate.
     """
 
@@ -344,7 +347,7 @@ class RegionCondition:
         if self.mode == "outside":
             return bool(z.max() < 0.0)
         zi = z[self._i]
-        return bool(zi >= 0.0 and (self._j < 0 or zi > z[self._j]))
+        return bool(zi >= 0.0 and (self._j < 0 or z[self._j] < 0.0))
 
     def holds(self, X: np.ndarray) -> np.ndarray:
         """Vectorised :meth:`__call__` over rows."""
@@ -352,7 +355,7 @@ class RegionCondition:
         if self.mode == "outside":
             return Z.max(axis=1) < 0.0
         ok = Z[:, self._i] >= 0.0
-        return ok & (Z[:, self._i] > Z[:, self._j]) if self._j >= 0 else ok
+        return ok & (Z[:, self._j] < 0.0) if self._j >= 0 else ok
 
     def save(self, path: str | os.PathLike) -> None:
         arrays, meta = self.regions.to_arrays()

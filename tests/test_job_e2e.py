@@ -1,0 +1,114 @@
+"""End to end: a small main job on the pendulum, the report in headless Chromium, and a practice loop
+killed midway that resumes with nothing lost. Slow (minutes): `make test-slow`, run in CI."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from multiform.job import Job, JobConfig, train_model
+from multiform.model import SkillModel
+from multiform.report.browser import chromium, render
+
+pytestmark = pytest.mark.slow
+
+SMALL = JobConfig(demos=14, eval_trials=12, ablation_trials=6, practice_max_trials=10, workers=2, seed=3,
+                  videos=True, inverse_model=False)
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("run")
+    Job("pendulum", out, SMALL, log=lambda s: None, progress=False).run()
+    return out
+
+
+def test_small_job_leaves_a_complete_run_folder(run):
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["demos"]["count"] == SMALL.demos
+    assert m["practice_trials"] == sum(s["trials"] for s in m["scenarios"].values()) > 0
+    sr = m["success_rate"]
+    assert sr["trials"] == SMALL.eval_trials and 0.0 <= sr["low"] <= sr["rate"] <= sr["high"] <= 1.0
+    for r in m["revisions"]:
+        assert {"operator", "target", "reason", "scenario"} <= set(r) and r["reason"]
+    # Scenario (a): the over-strict t1 never holds, so the loop must relearn it.
+    a = m["scenarios"]["a_strict"]
+    assert any(r["operator"] == "set_condition" and r["target"] == "t1" for r in a["revisions"])
+    assert a["outcomes"][:3] != ["success"] * 3
+    names = [row["name"] for row in m["ablation"]]
+    assert len(names) == 4 and names[0].startswith("multiform")
+    assert {"record_s", "train_s", "practice_s", "evaluate_s", "total_s"} <= set(m["timings"])
+    for rel in ("nets/net_v0.svg", "report.html"):
+        assert (run / rel).stat().st_size > 500, rel
+    assert len(list((run / "nets").glob("net_v*.svg"))) == 1 + len(m["revisions"])
+    videos = list(run.rglob("*.mp4"))
+    assert videos and all(v.stat().st_size > 10_000 for v in videos)
+    assert list((run / "plots").glob("*.png"))
+
+
+@pytest.mark.skipif(chromium() is None, reason="chromium not installed (make setup installs it)")
+def test_report_renders_in_headless_chromium(run):
+    page = render(run / "report.html")
+    assert page["returncode"] == 0
+    assert page["images"] >= 3 and page["images_ok"] == page["images"], page
+    assert page["tables"] >= 2, page
+    assert page["console_errors"] == []
+
+
+def _practice_cmd(model: Path, folder: Path) -> list[str]:
+    return [sys.executable, "-m", "multiform.cli", "practice", str(model), "--scenario", "a_strict",
+            "--out", str(folder), "--max-trials", "8", "--seed", "5"]
+
+
+def test_killed_practice_resumes_from_the_last_saved_revision(run, tmp_path):
+    """Kill the loop after its first repair, rerun the same command: it goes on from the saved state,
+    with every earlier trial and the revision kept, and nothing repeated."""
+    model_dir = tmp_path / "model"
+    src = SkillModel(run / "model")
+    fresh = SkillModel.create(model_dir, "pendulum_strict", run / "demos.h5", src.manifest["env"],
+                              src.manifest.get("env_kwargs", {}))
+    for sub in ("laws", "judges"):
+        shutil.copytree(run / "model" / sub, model_dir / sub, dirs_exist_ok=True)
+    for f in ("regions.npz", "labels.jsonl"):
+        shutil.copy2(run / "model" / f, model_dir / f)
+    fresh.update_manifest(training={k: v for k, v in src.manifest["training"].items()
+                                    if k in ("laws", "judges", "regions")})
+    train_model(SkillModel(model_dir), log=lambda s: None)      # nothing left to fit: must not refit
+    folder = tmp_path / "practice"
+    state_file = folder / "state.json"
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen(_practice_cmd(model_dir, folder), env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    killed_at = None
+    deadline = time.monotonic() + 600
+    while time.monotonic() < deadline and proc.poll() is None:
+        if state_file.exists():
+            s = json.loads(state_file.read_text())
+            if s["revisions"] and s["trial"] >= s["revisions"][0]["after_trial"] + 2:
+                proc.send_signal(signal.SIGKILL)
+                killed_at = s
+                break
+        time.sleep(0.05)
+    proc.wait(30)
+    assert killed_at is not None, "the loop finished or stalled before its first repair"
+    before = json.loads(state_file.read_text())
+    history_before = (model_dir / "skill.history.jsonl").read_text().splitlines()
+    assert len(history_before) == 1 and json.loads(history_before[0])["target"] == "t1"
+
+    rerun = subprocess.run(_practice_cmd(model_dir, folder), env=env, capture_output=True, text=True, timeout=900)
+    assert rerun.returncode == 0, rerun.stdout + rerun.stderr
+    after = json.loads(state_file.read_text())
+    assert after["trials"][: len(before["trials"])] == before["trials"]
+    assert [t["trial"] for t in after["trials"]] == list(range(len(after["trials"])))
+    assert after["revisions"][: len(before["revisions"])] == before["revisions"]
+    assert (model_dir / "skill.history.jsonl").read_text().splitlines()[:1] == history_before
+    assert all(t["net_version"] >= 1 for t in after["trials"][before["trial"]:])
+    assert after["done"]
