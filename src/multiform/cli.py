@@ -142,6 +142,81 @@ def cmd_demos_info(args: argparse.Namespace) -> int:
     return 0
 
 
+# Tests set this to a teleop script (see multiform.demos.teleop) to drive `multiform teleop` headless.
+_TELEOP_SCRIPT = None
+
+
+def cmd_teleop(args: argparse.Namespace) -> int:
+    import h5py
+
+    from .demos.dataset import read_dataset, write_dataset
+    from .envs.arm_pendulum import ArmPendulumEnv
+    from .tasks import get_task
+    task = get_task(args.task)
+    out = Path(args.out)
+    for flag, value in (("--time-scale", args.time_scale), ("--max-duration", args.max_duration)):
+        if not value > 0:
+            raise InvalidInput(f"must be positive, got {value}", element=flag)
+    if out.exists() and not args.append:
+        raise InvalidInput("exists; add --append to add the new demonstration to it, or choose another file",
+                           file=str(out))
+    episodes, skill, env_kwargs, mentor = [], task.SKILL, dict(task.DEMO_ENV_KWARGS), args.labeller
+    if out.exists():
+        ds = read_dataset(out)
+        if ds.env_name != task.ENV_ID or ds.env_kwargs.get("action_mode", "ee") != "ee" \
+                or tuple(ds.meta["observation_names"]) != tuple(ArmPendulumEnv.observation_names):
+            raise InvalidInput(f"holds demonstrations of {ds.env_name} {ds.env_kwargs}; teleop records "
+                               f"{task.ENV_ID} with end-effector commands", file=str(out), element="data")
+        episodes, skill, env_kwargs = list(ds.episodes), ds.skill, ds.env_kwargs
+        with h5py.File(out, "r") as f:
+            mentor = str(f["data/demo_0"].attrs.get("mentor", "")) if "data/demo_0" in f else mentor
+    try:
+        import pygame
+    except ImportError:
+        print("teleop needs pygame: pip install 'multiform[teleop]'", file=sys.stderr)
+        return 1
+    if args.joystick:
+        pygame.joystick.init()
+        count = pygame.joystick.get_count()
+        pygame.joystick.quit()
+        if not count:
+            raise InvalidInput("no joystick found; use --keyboard", element="--joystick")
+    from .demos.teleop import TeleopAborted, teleop_pendulum
+    seed = len(episodes) if args.seed is None else args.seed
+    print("arrows / stick: move the hand   0-6 / buttons: mark the sub-procedure (t0-t6)   Esc: end; "
+          "then s / f per segment", flush=True)
+    try:
+        ep = teleop_pendulum(seed=seed, options=task.demo_options(seed), joystick=not args.keyboard,
+                             time_scale=args.time_scale, max_duration=args.max_duration, labeller=args.labeller,
+                             script=_TELEOP_SCRIPT)
+    except TeleopAborted as exc:
+        print(f"teleop: {exc}; nothing written", file=sys.stderr)
+        return 1
+    write_dataset(out, episodes + [ep], skill, task.ENV_ID, env_kwargs, mentor=mentor)
+    labels = " ".join(f"{lab.transition}:{'s' if lab.success else 'f'}" for lab in ep.labels) or "none"
+    print(f"wrote {out}: demo_{len(episodes)} ({ep.duration:.1f} s, seed {seed}, {len(ep.segments())} segment(s), "
+          f"labels {labels}, outcome {ep.outcome or 'unlabelled'}); the file holds {len(episodes) + 1} demo(s)")
+    return 0
+
+
+def cmd_label(args: argparse.Namespace) -> int:
+    from .demos.labelling import label_session
+    res = label_session(args.model, args.source, labeller=args.labeller, script=args.script, show=not args.no_show,
+                        plots=args.plots, refit=args.refit, places=args.place, seed=args.seed)
+    ok = sum(r.success for r in res.records)
+    print(f"labelled {len(res.records)} of {res.segments} segment(s) ({ok} success, {len(res.records) - ok} failure), "
+          f"skipped {res.skipped}" + (f", {res.unlabelled} left" if res.unlabelled else "")
+          + f"; appended to {Path(args.model) / 'labels.jsonl'}")
+    if res.unused_keys:
+        print(f"note: {len(res.unused_keys)} key(s) of the script were not used: {res.unused_keys}")
+    if res.plots:
+        print(f"plots: {len(res.plots)} in {args.plots}")
+    for place, info in res.refit.items():
+        print(f"judge {place} refitted on {info['segments']} labelled segments ({info['success_labels']} success): "
+              f"kernel {info['kernel']}")
+    return 0
+
+
 def cmd_train(args: argparse.Namespace) -> int:
     from .demos.dataset import read_dataset
     from .job import train_model
@@ -274,6 +349,39 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("demos")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_demos_info)
+
+    p = sub.add_parser("teleop", help="demonstrate a task yourself (keyboard or joystick), label it, save it (HDF5)",
+                       description="Drive the arm with the arrow keys or a joystick axis, mark the sub-procedure "
+                                   "you are executing with the number keys or joystick buttons (0-6: t0-t6), end "
+                                   "with Esc, then label every segment s (success) or f (failure). The "
+                                   "demonstration is written to --out, or appended with --append.")
+    p.add_argument("task", choices=["pendulum"])
+    p.add_argument("--out", "-o", required=True, help="demonstration file (.h5)")
+    p.add_argument("--append", action="store_true", help="add the demonstration to an existing file")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--keyboard", action="store_true", help="ignore joysticks; arrow keys only")
+    g.add_argument("--joystick", action="store_true", help="require a joystick (axis 0 drives, buttons mark)")
+    p.add_argument("--time-scale", type=float, default=1.0, help="world speed; below 1 slows it down for a beginner")
+    p.add_argument("--max-duration", type=float, default=60.0, help="seconds of simulated time at most")
+    p.add_argument("--seed", type=int, default=None, help="start state (default: the number of demos in the file)")
+    p.add_argument("--labeller", default="human", help="your name, stored with your labels")
+    p.set_defaults(func=cmd_teleop)
+
+    p = sub.add_parser("label", help="label segments of demos or recorded trials success/failure (s/f keys)",
+                       description="Shows each stay of the token in a judged place (a small plot of the place's "
+                                   "judged variables) and reads one key from the terminal: s success, f failure, "
+                                   "k skip, q quit. Verdicts are appended to MODEL/labels.jsonl with your name; "
+                                   "earlier labels are never lost, a later verdict supersedes for training.")
+    p.add_argument("source", help="demonstration file (.h5), trial trace (.npz), or practice folder of traces")
+    p.add_argument("--model", "-m", required=True, help="skill model directory")
+    p.add_argument("--labeller", default=None, help="your name (default: your login name)")
+    p.add_argument("--script", default=None, help="the keys to use instead of the terminal, e.g. sfsk (tests)")
+    p.add_argument("--no-show", action="store_true", help="open no plot window")
+    p.add_argument("--plots", default=None, help="save every segment's plot (PNG) in this folder")
+    p.add_argument("--place", action="append", default=None, help="only this judged place (repeatable)")
+    p.add_argument("--refit", action="store_true", help="then revise the judges of the places that got new labels")
+    p.add_argument("--seed", type=int, default=0, help="random state of a newly fitted judge")
+    p.set_defaults(func=cmd_label)
 
     p = sub.add_parser("train", help="fit laws, judges and regions of a skill from demonstrations")
     p.add_argument("skill", help="skill file or bundled skill name")
