@@ -92,13 +92,13 @@ class SkillModel:
         return m
 
     def update_manifest(self, **items: Any) -> None:
-        m = self.manifest
-        for k, v in items.items():
-            if isinstance(v, dict) and isinstance(m.get(k), dict):
-                m[k] = {**m[k], **v}
-            else:
-                m[k] = v
-        write_json(self.path / "model.json", m)
+        """Merge ``items`` into ``model.json`` (nested dicts merged at every level)."""
+        def merge(old: dict[str, Any], new: Mapping[str, Any]) -> dict[str, Any]:
+            out = dict(old)
+            for k, v in new.items():
+                out[k] = merge(out[k], v) if isinstance(v, Mapping) and isinstance(out.get(k), dict) else v
+            return out
+        write_json(self.path / "model.json", merge(self.manifest, items))
 
     # -- the net ----------------------------------------------------------------------------------
     @property

@@ -128,7 +128,28 @@ def _laws(X, Y):
         "exact_mean_sparse_var": GPLaw(exact_var_max_n=100, n_inducing=150).fit(X, Y, theta=THETA5),
         "fitc": GPLaw(sparse_threshold=100, n_inducing=150).fit(X, Y, theta=THETA5),
         "dtc": GPLaw(sparse_threshold=100, n_inducing=150, sparse_method="dtc").fit(X, Y, theta=THETA5),
+        "exact_linear": GPLaw(sparse_threshold=None, mean="linear").fit(X, Y, theta=THETA5),
+        "fitc_linear": GPLaw(sparse_threshold=100, n_inducing=150, mean="linear").fit(X, Y, theta=THETA5),
     }
+
+
+def test_linear_mean_extrapolates_where_a_constant_mean_reverts():
+    """A balancing law seen mostly near upright: u = -k·θ with noise, θ within ±0.05; asked at
+    θ = 0.3 the constant-mean GP falls back towards the data mean, the linear-mean GP follows -k·θ."""
+    rng = np.random.default_rng(3)
+    X = rng.normal(0.0, 0.02, (600, 2))
+    y = -8.0 * X[:, 0] - 1.0 * X[:, 1] + rng.normal(0, 0.02, 600)
+    far = np.array([[0.3, 0.0], [-0.3, 0.1]])
+    truth = -8.0 * far[:, 0] - 1.0 * far[:, 1]
+    theta = np.log([1.0, 1.0, 1.0, 0.1])        # one standardised length scale: θ = 0.3 is 15 of them out
+    const = GPLaw().fit(X, y, theta=theta)
+    lin = GPLaw(mean="linear").fit(X, y, theta=theta)
+    np.testing.assert_allclose(lin.predict(far), truth, rtol=0.05)
+    np.testing.assert_allclose(const.predict(far), y.mean(), atol=1e-6)
+    near = rng.normal(0.0, 0.02, (200, 2))
+    np.testing.assert_allclose(lin.predict(near), -8.0 * near[:, 0] - near[:, 1], atol=0.05)
+    with pytest.raises(ValueError, match="mean"):
+        GPLaw(mean="quadratic").fit(X, y)
 
 
 def test_modes_follow_thresholds():
