@@ -219,8 +219,10 @@ def train_model(model: SkillModel, seed: int = 0, log: Log = print,
         model.save_judge(place, judge)
         judges[place] = info
         model.update_manifest(training={"judges": judges})
-        log(f"  judge {place}: kernel {info['kernel']}, CV {info['cv_score']:.3f}, held-out accuracy "
-            f"{info.get('heldout_accuracy', float('nan')):.3f} on {info.get('heldout_segments', 0)} segments")
+        cv = info.get("cv_score")
+        log(f"  judge {place}: kernel {info['kernel']}, CV {'-' if cv is None else f'{cv:.3f}'}, held-out accuracy "
+            f"{info.get('heldout_accuracy', float('nan')):.3f} on {info.get('heldout_segments', 0)} segments"
+            + (f" (all {info['segments']} labels alike)" if info["success_labels"] in (0, info["segments"]) else ""))
     if "regions" not in summary or model.regions() is None:
         regions, info = fit_regions(apn, eps, seed=seed)
         model.save_regions(regions)

@@ -4,7 +4,8 @@ One tick (see the README's "Tick semantics"): read the state → the net observe
 most one transition → the active law(s) compute the end-effector command → the safety limits clip
 it → the inverse model (if any) turns it into joint torques, clipped to the actuator limits → the
 env steps. The executor reads only the env's observations (the robot's own sensors); it never
-looks at simulator internals, except to keep poses for a video when asked.
+looks at simulator internals, except to keep poses for a video when asked; the env's last ``info``
+goes into the trace (``Trace.final_info``) for the experimenter's physical success check only.
 
 Works on any env that exposes ``observation_names`` and ``command_names`` (on ``env.unwrapped``)
 matching the skill's variables and commands. A non-finite or diverging state, or an env that
@@ -188,4 +189,4 @@ class Executor:
                      enabled_ticks=dict(zip(self.apn.transition_ids, runner.enabled_ticks)),
                      held_ticks=dict(zip(self.apn.transition_ids, runner.held_ticks)),
                      qpos=np.array(poses) if poses else None, qpos_every=qpos_every,
-                     wall_time=_time.perf_counter() - wall0)
+                     wall_time=_time.perf_counter() - wall0, final_info=dict(info or {}))

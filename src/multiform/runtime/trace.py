@@ -45,6 +45,8 @@ class Trace:
     qpos: np.ndarray | None = None  # (F, nq) simulator poses for rendering only, every `qpos_every` ticks
     qpos_every: int = 0
     wall_time: float = 0.0
+    final_info: dict[str, Any] = field(default_factory=dict)  # env info at the end, for the experimenter's
+    # physical success check (never read by the robot; not saved)
 
     @property
     def num_ticks(self) -> int:
