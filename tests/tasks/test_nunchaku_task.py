@@ -118,13 +118,13 @@ def test_learned_flip_closed_loop_on_estimates(learned):
 def test_small_nunchaku_job_end_to_end(tmp_path):
     from multiform.job import Job, JobConfig
     out = tmp_path / "run"
-    cfg = JobConfig(demos=16, eval_trials=12, ablation_trials=6, practice_max_trials=6, workers=2)
+    cfg = JobConfig(demos=20, eval_trials=12, ablation_trials=6, practice_max_trials=6, workers=2)
     m = Job("nunchaku", out, cfg, log=lambda s: None, progress=False).run()
     disk = json.loads((out / "metrics.json").read_text())
     assert disk["task"] == "nunchaku" and disk["success_rate"]["trials"] == 12
     sr = disk["success_rate"]
     assert 0.0 <= sr["low"] <= sr["rate"] <= sr["high"] <= 1.0
-    assert sr["rate"] >= 0.5                                   # learned from 16 demos, not the target run
+    assert sr["rate"] >= 0.5                                   # learned from 20 demos, not the target run
     assert 0.0 < disk["demos"]["mentor_success_rate"]["rate"] <= 1.0
     names = [r["name"] for r in disk["ablation"]]
     assert any(n.startswith("demonstration only") for n in names)

@@ -97,10 +97,15 @@ def physical_success(trace: Trace) -> bool:
 
 
 def scenarios() -> list[dict[str, Any]]:
-    """Practice from the mentor's definition as written, on randomised nunchakus."""
+    """Practice from the mentor's definition on randomised nunchakus. Constant failure is 6 failures
+    in a row or 8 of the last 10 trials: a flip that works most of the time fails now and then
+    (a weak flick, a late catch), and three such trials in a row are not a flaw in the definition —
+    a repair made on them replaced t4's grip condition with a switch condition that fired before the
+    catch (observed with 16 demonstrations)."""
     return [
         {"name": "a_practice", "title": "(a) practice from the mentor's definition on randomised nunchakus",
-         "options": trial_options, "config": {"failures_in_a_row": 3, "success_streak": 5}},
+         "options": trial_options,
+         "config": {"failures_in_a_row": 6, "window": 10, "failure_rate": 0.8, "success_streak": 5}},
     ]
 
 
