@@ -201,13 +201,20 @@ class ModelLearners:
         return name
 
     def switch_variables(self, apn: APN, transition: str) -> tuple[str, ...]:
-        """The variables a switch condition reads: the judged variables of the place it leaves."""
-        src = list(apn.transition(transition).inputs)
+        """The variables a switch condition reads: the judged variables of the place it leaves, and
+        the state variables the mentor's own condition for it reads (the mentor said what matters,
+        if not exactly how: a regrasp condition learned without ``grip`` fired before the catch)."""
+        t = apn.transition(transition)
         names: list[str] = []
-        for p in src:
+        for p in t.inputs:
             for v in apn.place(p).judge:
                 if v not in names:
                     names.append(v)
+        guard = t.condition.guard
+        state = set(apn.variables) | set(apn.derived)
+        for v in sorted(guard.variables if guard is not None else ()):
+            if v in state and v not in names:
+                names.append(v)
         return tuple(names) or tuple(apn.variables)
 
     def has_switches(self, apn: APN, transition: str) -> bool:
@@ -230,12 +237,15 @@ class ModelLearners:
         return r
 
     def region_condition(self, apn: APN, into: str, away_from: str) -> tuple[str, dict[str, Any]]:
+        from .learn.training import settle_time
         regions = self._regions()
         other = away_from if away_from in regions.places_ else None
-        cond = regions.condition(into, other)
+        settle = settle_time(self.model.history.version(0), self.model.episodes, regions, other) if other else 0.0
+        cond = regions.condition(into, other, settle=settle)
         name = self._fresh(f"in_{into}")
         self.model.save_condition(name, cond)
-        return name, {"model": name, "variables": list(regions.input_names), "into": into, "rather_than": other}
+        return name, {"model": name, "variables": list(cond.input_names), "into": into, "rather_than": other,
+                      "settle_s": round(settle, 3)}
 
     def outside_condition(self, apn: APN, place: str, states: Sequence[Sequence[float]]) -> tuple[str, dict[str, Any]]:
         regions = self._regions()

@@ -176,6 +176,26 @@ def fit_regions(apn: APN, episodes: Sequence[Episode], seed: int = 0) -> tuple[P
                      "components": {p: int(k) for p, k in regions.components_.items()}}
 
 
+def settle_time(apn: APN, episodes: Sequence[Episode], regions: PlaceRegions, place: str) -> float:
+    """Seconds into the mentor's successful stays in ``place`` after which its state never left the
+    place's region again (the longest over the stays): a catch starts outside the balanced region,
+    so "the state has left the place" means something only after this long."""
+    from .views import stays, success_mask
+    names = list(regions.input_names)
+    worst = 0.0
+    for ep in episodes:
+        ok = success_mask(ep)
+        V = None
+        for s, e, p in stays(apn, ep.tags):
+            if p != place or not ok[s:e].all():
+                continue
+            V = value_matrix(apn, ep, names) if V is None else V
+            out = np.nonzero(~regions.belongs(V[s:e], place))[0]
+            if len(out):
+                worst = max(worst, float((out[-1] + 1) * ep.dt))
+    return worst
+
+
 @dataclass
 class TrainingReport:
     """What :func:`train` fitted and measured."""
