@@ -11,6 +11,8 @@ import os
 # processes, and on a shared 2-core machine a second BLAS thread made small solves 30x slower.
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
+# Videos need MuJoCo's offscreen renderer without a display: EGL (installed by `make setup`).
+os.environ.setdefault("MUJOCO_GL", "egl")
 
 import argparse  # noqa: E402
 import sys  # noqa: E402

@@ -186,7 +186,7 @@ def settle_time(apn: APN, episodes: Sequence[Episode], regions: PlaceRegions, pl
     for ep in episodes:
         ok = success_mask(ep)
         V = None
-        for s, e, p in stays(apn, ep.tags):
+        for s, e, p in stays(apn, ep.transitions):
             if p != place or not ok[s:e].all():
                 continue
             V = value_matrix(apn, ep, names) if V is None else V
