@@ -237,15 +237,15 @@ class ModelLearners:
         return r
 
     def region_condition(self, apn: APN, into: str, away_from: str) -> tuple[str, dict[str, Any]]:
-        from .learn.training import settle_time
+        from .learn.training import region_floor
         regions = self._regions()
         other = away_from if away_from in regions.places_ else None
-        settle = settle_time(self.model.history.version(0), self.model.episodes, regions, other) if other else 0.0
-        cond = regions.condition(into, other, settle=settle)
+        floor = region_floor(self.model.history.version(0), self.model.episodes, regions, other) if other else 0.0
+        cond = regions.condition(into, other, leave_below=floor)
         name = self._fresh(f"in_{into}")
         self.model.save_condition(name, cond)
         return name, {"model": name, "variables": list(cond.input_names), "into": into, "rather_than": other,
-                      "settle_s": round(settle, 3)}
+                      "leave_below_logit": round(floor, 3)}
 
     def outside_condition(self, apn: APN, place: str, states: Sequence[Sequence[float]]) -> tuple[str, dict[str, Any]]:
         regions = self._regions()

@@ -65,18 +65,16 @@ def test_conditions_for_the_repair_loop(regions, tmp_path):
     np.testing.assert_array_equal(back.holds(X), [back(x) for x in X])
     np.testing.assert_array_equal(out.holds(X), [out(x) for x in X])
 
-    # With a settling time the way back also waits on the clock of the place being left.
-    slow = regions.condition("P1", rather_than="P2", settle=0.5)
-    assert slow.input_names == tuple(regions.input_names) + ("dwell_P2",)
-    assert not slow(np.r_[DISTURBED, 0.2]) and slow(np.r_[DISTURBED, 0.6])
-    Xc = np.c_[X, np.linspace(0, 1, len(X))]
-    np.testing.assert_array_equal(slow.holds(Xc), [slow(x) for x in Xc])
-    slow.save(tmp_path / "slow.npz")
-    again = load_condition(tmp_path / "slow.npz", input_names=slow.input_names)
-    assert again.settle == 0.5 and again.input_names == slow.input_names
-    np.testing.assert_array_equal(again.holds(Xc), slow.holds(Xc))
+    # With a floor below the boundary the way back waits until the state is further out.
+    deep = regions.condition("P1", rather_than="P2", leave_below=-3.0)
+    z2 = regions.logits(X)[:, regions.places_.index("P2")]
+    np.testing.assert_array_equal(deep.holds(X), back.holds(X) & (z2 < -3.0))
+    deep.save(tmp_path / "deep.npz")
+    again = load_condition(tmp_path / "deep.npz", input_names=NAMES)
+    assert again.leave_below == -3.0
+    np.testing.assert_array_equal(again.holds(X), deep.holds(X))
     with pytest.raises(ValueError):
-        regions.condition("P1", settle=0.5)
+        regions.condition("P1", rather_than="P2", leave_below=0.5)
 
     path = tmp_path / "t7.npz"
     back.save(path)

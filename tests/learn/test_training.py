@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from multiform.demos.record import record_many
-from multiform.learn.training import LawSettings, fit_law, fit_regions, settle_time
+from multiform.learn.training import LawSettings, fit_law, fit_regions, region_floor
 from multiform.learn.views import law_data, stays, success_mask, value_matrix
 from multiform.petri.skillfile import load_skill
 from multiform.tasks import pendulum as task
@@ -44,15 +44,17 @@ def test_swing_up_law_reproduces_the_mentor(demos):
     assert nrmse < 0.25 and info["heldout_nrmse"] < 0.35, (nrmse, info["heldout_nrmse"])
 
 
-def test_settle_time_covers_the_mentors_catches(demos):
+def test_region_floor_keeps_the_mentors_catches_inside(demos):
     apn, eps = demos
     regions, _ = fit_regions(apn, eps)
-    t = settle_time(apn, eps, regions, "P2")
-    assert 0.0 < t < 2.0
+    floor = region_floor(apn, eps, regions, "P2")
+    assert floor < 0.0
+    back = regions.condition("P1", rather_than="P2", leave_below=floor)
     for ep in eps:
         V = value_matrix(apn, ep, list(regions.input_names))
         ok = success_mask(ep)
         for s, e, p in stays(apn, ep.transitions):
             if p == "P2" and ok[s:e].all():
-                after = s + int(np.ceil(t / ep.dt))
-                assert regions.belongs(V[after:e], "P2").all()
+                assert not back.holds(V[s:e]).any()
+    fallen = np.array([[0.9, 4.0, 0.0], [-1.2, -3.0, 0.1]])      # a pushed pendulum falling
+    assert back.holds(fallen).all()

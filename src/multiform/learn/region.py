@@ -241,14 +241,15 @@ class PlaceRegions(BaseEstimator):
         return {p: float(self.belongs(X, p).mean()) for p, X in samples.items() if p in self.densities_}
 
     # -- conditions the repair operators add --------------------------------------------------------
-    def condition(self, into: str, rather_than: str | None = None, settle: float = 0.0) -> RegionCondition:
-        """True when the state belongs to ``into`` (score ≥ 0.5) and, if given, no longer belongs to
-        ``rather_than`` (score < 0.5) — the paper's t7: back from "balanced" to "swung up"."""
+    def condition(self, into: str, rather_than: str | None = None, leave_below: float = 0.0) -> RegionCondition:
+        """True when the state belongs to ``into`` (score ≥ 0.5) and, if given, has left
+        ``rather_than`` (logit below ``leave_below`` ≤ 0, i.e. score below σ(leave_below)) — the
+        paper's t7: back from "balanced" to "swung up"."""
         places = [into] + ([rather_than] if rather_than else [])
         for p in places:
             if p not in self.densities_:
                 raise KeyError(f"no region for place {p!r} (have: {', '.join(self.places_)})")
-        return RegionCondition(self._subset(places), "into", into, rather_than, settle)
+        return RegionCondition(self._subset(places), "into", into, rather_than, leave_below)
 
     def outside_condition(self) -> RegionCondition:
         """True when the state belongs to no place's region."""
@@ -325,8 +326,9 @@ class RegionCondition:
     calls with one state in ``input_names`` order).
 
     ``mode="into"``: holds when the state belongs to ``into`` and, if ``rather_than`` is given, has
-    left that place's region (the place the token is in) after ``settle`` seconds there (read from
-    the place clock ``dwell_<rather_than>``, the last input). Leaving is required, not merely scoring
+    left that place: its calibrated logit is below ``leave_below`` (0 = the region's boundary; the
+    repair loop passes the lowest logit the mentor's own successful stays there ever reached, so
+    that "left" means further out than any state the mentor still succeeded from). Leaving is required, not merely scoring
     higher: the first states of a stay (a balance catch just begun) can score higher for the place
     the token came from, and a way back that fired there would undo every entry at once;
     ``mode="outside"``: holds when no place's score reaches the threshold. Decided
@@ -334,56 +336,46 @@ class RegionCondition:
     """
 
     def __init__(self, regions: PlaceRegions, mode: str, into: str | None = None, rather_than: str | None = None,
-                 settle: float = 0.0):
+                 leave_below: float = 0.0):
         if mode not in ("into", "outside"):
             raise ValueError(f"mode must be 'into' or 'outside', got {mode!r}")
         if mode == "into" and into is None:
             raise ValueError("an 'into' condition needs its place")
-        if settle < 0 or (settle > 0 and rather_than is None):
-            raise ValueError("settle must be ≥ 0 and needs the place being left (rather_than)")
+        if not leave_below <= 0.0:
+            raise ValueError(f"leave_below must be ≤ 0 (inside a region the logit is ≥ 0), got {leave_below}")
         self.regions, self.mode, self.into, self.rather_than = regions, mode, into, rather_than
-        self.settle = float(settle)
-        self._d = len(regions.input_names)
-        self.input_names = tuple(regions.input_names) + ((f"dwell_{rather_than}",) if self.settle > 0 else ())
+        self.leave_below = float(leave_below)
+        self.input_names = tuple(regions.input_names)
         self._i = regions._index[into] if into else -1
         self._j = regions._index[rather_than] if rather_than else -1
 
     def __call__(self, x: np.ndarray) -> bool:
-        if self.settle > 0 and x[self._d] < self.settle:
-            return False
-        z = self.regions.logits_one(x[:self._d] if self.settle > 0 else x)
+        z = self.regions.logits_one(x)
         if self.mode == "outside":
             return bool(z.max() < 0.0)
-        zi = z[self._i]
-        return bool(zi >= 0.0 and (self._j < 0 or z[self._j] < 0.0))
+        return bool(z[self._i] >= 0.0 and (self._j < 0 or z[self._j] < self.leave_below))
 
     def holds(self, X: np.ndarray) -> np.ndarray:
         """Vectorised :meth:`__call__` over rows."""
-        X = np.asarray(X, dtype=np.float64)
-        Z = self.regions.logits(X[:, :self._d])
+        Z = self.regions.logits(X)
         if self.mode == "outside":
             return Z.max(axis=1) < 0.0
         ok = Z[:, self._i] >= 0.0
-        if self._j >= 0:
-            ok &= Z[:, self._j] < 0.0
-        if self.settle > 0:
-            ok &= X[:, self._d] >= self.settle
-        return ok
+        return ok & (Z[:, self._j] < self.leave_below) if self._j >= 0 else ok
 
     def save(self, path: str | os.PathLike) -> None:
         arrays, meta = self.regions.to_arrays()
-        meta = {**meta, "mode": self.mode, "into": self.into, "rather_than": self.rather_than, "settle": self.settle}
+        meta = {**meta, "mode": self.mode, "into": self.into, "rather_than": self.rather_than,
+                "leave_below": self.leave_below}
         save_npz(path, arrays, meta, COND_KIND, VERSION)
 
     @classmethod
     def load(cls, path: str | os.PathLike, input_names: Sequence[str] | None = None) -> RegionCondition:
         f = str(path)
         arrays, meta = load_npz(path, COND_KIND, VERSION)
-        settle = meta.get("settle", 0.0)
-        if not isinstance(settle, (int, float)) or not 0 <= settle < float("inf"):
-            raise InvalidInput(f"settle must be a finite number ≥ 0, got {settle!r}", file=f, element="settle")
-        if settle > 0 and input_names is not None:
-            input_names = tuple(input_names)[:-1]
+        leave = meta.get("leave_below", 0.0)
+        if isinstance(leave, bool) or not isinstance(leave, (int, float)) or not -float("inf") < leave <= 0:
+            raise InvalidInput(f"must be a finite number ≤ 0, got {leave!r}", file=f, element="leave_below")
         regions = PlaceRegions.from_arrays(arrays, meta, f, input_names)
         mode, into, away = meta.get("mode"), meta.get("into"), meta.get("rather_than")
         if mode not in ("into", "outside"):
@@ -393,9 +385,7 @@ class RegionCondition:
                 raise InvalidInput(f"names place {p!r}, which has no region here", file=f, element=el)
         if mode == "into" and into is None:
             raise InvalidInput("an 'into' condition needs its place", file=f, element="into")
-        if settle > 0 and away is None:
-            raise InvalidInput("settle needs the place being left (rather_than)", file=f, element="settle")
-        return cls(regions, mode, into, away, float(settle))
+        return cls(regions, mode, into, away, float(leave))
 
 
 def _sigmoid(z: np.ndarray) -> np.ndarray:

@@ -176,13 +176,14 @@ def fit_regions(apn: APN, episodes: Sequence[Episode], seed: int = 0) -> tuple[P
                      "components": {p: int(k) for p, k in regions.components_.items()}}
 
 
-def settle_time(apn: APN, episodes: Sequence[Episode], regions: PlaceRegions, place: str) -> float:
-    """Seconds into the mentor's successful stays in ``place`` after which its state never left the
-    place's region again (the longest over the stays): a catch starts outside the balanced region,
-    so "the state has left the place" means something only after this long."""
+def region_floor(apn: APN, episodes: Sequence[Episode], regions: PlaceRegions, place: str) -> float:
+    """The lowest calibrated logit of ``place``'s region over the mentor's successful stays there
+    (≤ 0): a catch begins outside the balanced region, so a state counts as having left the place
+    only when it is further out than any state the mentor still succeeded from."""
     from .views import stays, success_mask
     names = list(regions.input_names)
-    worst = 0.0
+    j = regions.places_.index(place)
+    floor = 0.0
     for ep in episodes:
         ok = success_mask(ep)
         V = None
@@ -190,10 +191,8 @@ def settle_time(apn: APN, episodes: Sequence[Episode], regions: PlaceRegions, pl
             if p != place or not ok[s:e].all():
                 continue
             V = value_matrix(apn, ep, names) if V is None else V
-            out = np.nonzero(~regions.belongs(V[s:e], place))[0]
-            if len(out):
-                worst = max(worst, float((out[-1] + 1) * ep.dt))
-    return worst
+            floor = min(floor, float(regions.logits(V[s:e])[:, j].min()))
+    return floor
 
 
 @dataclass
