@@ -54,7 +54,7 @@ class LawSettings:
     sparse_threshold: int | None = 3000
     n_inducing: int = 300
     max_train: int = 20000           # a random subset above this (the sparse posterior does not need more)
-    mean: str = "linear"             # GP mean function; linear extrapolates sanely beyond the demos
+    mean: str | None = None          # GP mean function; None: the skill file's choice per law
 
 
 def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool = True,
@@ -70,7 +70,7 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
 
     def make() -> GPLaw:
         return GPLaw(n_hyper=s.n_hyper, n_restarts=s.n_restarts, sparse_threshold=s.sparse_threshold,
-                     n_inducing=s.n_inducing, mean=s.mean, random_state=seed, input_names=tuple(spec.inputs),
+                     n_inducing=s.n_inducing, mean=s.mean or spec.mean, random_state=seed, input_names=tuple(spec.inputs),
                      output_names=tuple(spec.outputs))
 
     def subset(idx: np.ndarray) -> np.ndarray:

@@ -113,16 +113,24 @@ def _arcs_data(arcs: Mapping[str, int]) -> list[str] | dict[str, int]:
 
 @dataclass(frozen=True)
 class Law:
-    """A control law: which variables it reads and which commands it writes."""
+    """A control law: which variables it reads, which commands it writes, and its GP's mean function
+    (``constant``, or ``linear`` for a maneuver that is a feedback about an operating point and
+    should extrapolate as one)."""
 
     name: str
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
+    mean: str = "constant"
+    description: str = ""
 
     def to_data(self, commands: tuple[str, ...]) -> dict[str, Any]:
         out: dict[str, Any] = {"inputs": list(self.inputs)}
         if self.outputs != commands:
             out["outputs"] = list(self.outputs)
+        if self.mean != "constant":
+            out["mean"] = self.mean
+        if self.description:
+            out["description"] = self.description
         return out
 
 

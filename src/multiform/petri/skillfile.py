@@ -26,7 +26,8 @@ TOP_KEYS = {"skill", "description", "env", "control_rate", "max_duration", "vari
             "commands", "laws", "places", "initial_marking", "transitions", "arcs", "safety"}
 PLACE_KEYS = {"label", "final", "judge"}
 TRANSITION_KEYS = {"label", "in", "out", "law", "lambda", "condition"}
-LAW_KEYS = {"inputs", "outputs", "description"}
+LAW_KEYS = {"inputs", "outputs", "mean", "description"}
+LAW_MEANS = ("constant", "linear")
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):
@@ -360,7 +361,14 @@ def _laws(raw: Any, allowed: frozenset[str], commands: tuple[str, ...], bad) -> 
                 bad(f"{el}.outputs", f"unknown command {c!r} (commands: {', '.join(commands) or 'none'})")
         if not outputs:
             bad(f"{el}.outputs", "a law needs at least one output (declare 'commands')")
-        out[name] = Law(name=name, inputs=tuple(inputs), outputs=tuple(outputs))
+        mean = spec.get("mean", "constant")
+        if mean not in LAW_MEANS:
+            bad(f"{el}.mean", f"must be one of {', '.join(LAW_MEANS)}, got {mean!r}")
+        desc = spec.get("description", "")
+        if not isinstance(desc, str):
+            bad(f"{el}.description", "must be text")
+        out[name] = Law(name=name, inputs=tuple(inputs), outputs=tuple(outputs),
+                        mean=mean if mean in LAW_MEANS else "constant", description=desc if isinstance(desc, str) else "")
     return out
 
 
