@@ -32,8 +32,18 @@ def make_mentor(**kwargs: Any):
     return PendulumMentor(**kwargs)
 
 
+FALLING_DEMOS = 0.25               # fraction of demos that start with the pendulum falling from near upright
+
+
 def demo_options(seed: int) -> dict[str, Any]:
-    """Reset options of demonstration ``seed``: pendulum length and mass ±20 %, random start."""
+    """Reset options of demonstration ``seed``: pendulum length and mass ±20 %, random start; a
+    quarter of the demos start with the pendulum falling from near upright (|θ| ≤ 0.6 rad, 2-5 rad/s),
+    as after a push, so the mentor also shows a swing-up that brakes a pendulum with too much energy
+    (from hanging alone the swing-up law never sees one, and after a push it let the pendulum spin)."""
+    rng = np.random.default_rng([seed, 3])
+    if rng.random() < FALLING_DEMOS:
+        return {"randomize": True, "theta0": float(rng.uniform(-0.6, 0.6)),
+                "omega0": float(rng.choice([-1.0, 1.0]) * rng.uniform(2.0, 5.0))}
     return {"randomize": True}
 
 
