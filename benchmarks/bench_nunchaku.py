@@ -23,20 +23,11 @@ import numpy as np
 from multiform.demos.nunchaku_mentor import NunchakuMentor
 from multiform.demos.record import record_episode
 from multiform.envs.nunchaku import OBSERVATION_NAMES, NunchakuEnv
+from multiform.stats import wilson
 
 AUBO_JOINT_SPEED = 3.14       # rad/s, joints 1-3 of the AUBO i5
 AUBO_WRIST_SPEED = 2.6        # rad/s, joints 4-6
 AUBO_REACH = 0.8865           # m
-
-
-def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """Wilson score interval of a success rate k/n."""
-    if n == 0:
-        return 0.0, 1.0
-    p = k / n
-    c = (p + z * z / (2 * n)) / (1 + z * z / n)
-    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(0.0, c - h), min(1.0, c + h)
 
 
 def sim_speed(seconds: float = 3.0) -> None:
