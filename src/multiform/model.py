@@ -38,7 +38,7 @@ from .learn.condition import load_condition
 from .learn.gp import GPLaw
 from .learn.judge import Judge, TrialGrade, grade_episode
 from .learn.labels import LabelStore
-from .learn.region import PlaceRegions
+from .learn.region import PlaceRegions, share_regions
 from .learn.views import place_episode, switch_data
 from .petri.net import APN
 from .petri.revision import History
@@ -140,7 +140,9 @@ class SkillModel:
         model.save(self.path / "conditions" / f"{name}.npz")
 
     def conditions(self) -> dict[str, Any]:
-        return {p.stem: load_condition(p) for p in sorted((self.path / "conditions").glob("*.npz"))}
+        conds = {p.stem: load_condition(p) for p in sorted((self.path / "conditions").glob("*.npz"))}
+        share_regions(conds)
+        return conds
 
     def save_regions(self, regions: PlaceRegions) -> None:
         regions.save(self.path / "regions.npz")
@@ -166,7 +168,9 @@ class SkillModel:
         """The env the skill runs on (the manifest's id and arguments; ``overrides`` win)."""
         import multiform.envs  # noqa: F401  (registers the envs)
         m = self.manifest
-        return gym.make(m["env"], **{**m.get("env_kwargs", {}), **overrides})
+        # Gymnasium's passive checker wraps every step (≈ 10 µs at 1 kHz); our envs pass its full
+        # check_env in their tests, so the skill's runs go without it.
+        return gym.make(m["env"], disable_env_checker=True, **{**m.get("env_kwargs", {}), **overrides})
 
     def executor(self, env: gym.Env, apn: APN | None = None, use_inverse_model: bool = True) -> Executor:
         """An executor for ``apn`` (default: the latest net) with this model's laws and conditions."""
@@ -191,6 +195,7 @@ class ModelLearners:
     def __init__(self, model: SkillModel, seed: int = 0):
         self.model = model
         self.seed = seed
+        self._floors: dict[str, float] | None = None
 
     def _fresh(self, stem: str) -> str:
         used = {p.stem for p in (self.model.path / "conditions").glob("*.npz")}
@@ -236,11 +241,21 @@ class ModelLearners:
             raise InvalidInput("the model has no place regions (train first)", file=str(self.model.path))
         return r
 
+    def leave_floors(self) -> dict[str, float]:
+        """Per place with a region, the logit below which the state has left it: the lowest the
+        mentor's successful stays there reached (:func:`~multiform.learn.training.region_floor`).
+        Diagnosis, ways back and the "outside" condition all use this one meaning of "left"."""
+        if self._floors is None:
+            from .learn.training import region_floor
+            regions = self._regions()
+            apn0 = self.model.history.version(0)
+            self._floors = {p: region_floor(apn0, self.model.episodes, regions, p) for p in regions.places_}
+        return dict(self._floors)
+
     def region_condition(self, apn: APN, into: str, away_from: str) -> tuple[str, dict[str, Any]]:
-        from .learn.training import region_floor
         regions = self._regions()
         other = away_from if away_from in regions.places_ else None
-        floor = region_floor(self.model.history.version(0), self.model.episodes, regions, other) if other else 0.0
+        floor = self.leave_floors()[other] if other else 0.0
         cond = regions.condition(into, other, leave_below=floor)
         name = self._fresh(f"in_{into}")
         self.model.save_condition(name, cond)
@@ -249,7 +264,10 @@ class ModelLearners:
 
     def outside_condition(self, apn: APN, place: str, states: Sequence[Sequence[float]]) -> tuple[str, dict[str, Any]]:
         regions = self._regions()
-        cond = regions.outside_condition()
+        leaving = place if place in regions.places_ else None
+        floor = self.leave_floors()[leaving] if leaving else 0.0
+        cond = regions.outside_condition(leaving, leave_below=floor)
         name = self._fresh(f"outside_{place}")
         self.model.save_condition(name, cond)
-        return name, {"model": name, "variables": list(regions.input_names), "examples": len(states)}
+        return name, {"model": name, "variables": list(regions.input_names), "examples": len(states),
+                      "leaving": leaving, "leave_below_logit": round(floor, 3)}

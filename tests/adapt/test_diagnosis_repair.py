@@ -128,3 +128,25 @@ def test_timeouts_are_not_disturbances():
     def scores(states):
         return {"P1": np.full(len(states), 0.1), "P2": np.full(len(states), 0.1)}
     assert diagnose(apn, tr, scores, ("theta", "omega", "x")).exits == []
+
+
+def test_a_stray_just_outside_is_not_lost():
+    """A state just outside P2's region, no further out than the mentor's successful stays went
+    (P2 score above its leave score), is not evidence for a new place; once it goes further, it is."""
+    apn = load_skill("pendulum")
+    n = 200
+    v = vals(n, 0.05)
+    v[150:, 0] = 0.3                                   # leaves P2's region, but only just
+    fir = [(0, "t0"), (50, "t1"), (199, "t5")]
+    tr = [make_trace(apn, fir, v, "failure") for _ in range(3)]
+
+    def scores(states):
+        th = np.abs(states[:, 0])
+        return {"P1": np.full(len(states), 0.01), "P2": np.where(th < 0.25, 0.95, np.where(th < 0.5, 0.2, 1e-9))}
+    assert diagnose(apn, tr, scores, ("theta", "omega", "x"), leave_scores={"P2": 1e-6}).exits == []
+    # without leave scores, or with a state beyond them, the same trials show a lost state
+    assert len(diagnose(apn, tr, scores, ("theta", "omega", "x")).exits) == 3
+    v[180:, 0] = 0.9
+    tr = [make_trace(apn, fir, v, "failure") for _ in range(3)]
+    d = diagnose(apn, tr, scores, ("theta", "omega", "x"), leave_scores={"P2": 1e-6})
+    assert [(e.best, round(e.state[0], 2)) for e in d.exits] == [(None, 0.9)] * 3

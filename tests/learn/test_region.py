@@ -6,7 +6,7 @@ import pytest
 from multiform.errors import InvalidInput
 from multiform.io import load_npz, save_npz
 from multiform.learn.condition import load_condition
-from multiform.learn.region import KIND, VERSION, PlaceRegions, RegionCondition
+from multiform.learn.region import KIND, VERSION, PlaceRegions, RegionCondition, share_regions
 from multiform.petri.firing import NetRunner
 from multiform.petri.revision import add_transition
 from multiform.petri.skillfile import load_skill
@@ -76,6 +76,14 @@ def test_conditions_for_the_repair_loop(regions, tmp_path):
     with pytest.raises(ValueError):
         regions.condition("P1", rather_than="P2", leave_below=0.5)
 
+    # "outside" leaving P2: P2 must be below its floor, every other place below its boundary
+    out_deep = regions.outside_condition("P2", leave_below=-3.0)
+    Z = regions.logits(X)
+    np.testing.assert_array_equal(out_deep.holds(X), (Z[:, regions.places_.index("P1")] < 0) & (z2 < -3.0))
+    np.testing.assert_array_equal(out_deep.holds(X), [out_deep(x) for x in X])
+    out_deep.save(tmp_path / "out.npz")
+    np.testing.assert_array_equal(load_condition(tmp_path / "out.npz", input_names=NAMES).holds(X), out_deep.holds(X))
+
     path = tmp_path / "t7.npz"
     back.save(path)
     again = load_condition(path, input_names=NAMES)
@@ -126,3 +134,24 @@ def test_save_load_round_trip_and_bad_files(regions, tmp_path):
 def test_too_few_states():
     with pytest.raises(ValueError, match="too few"):
         PlaceRegions(NAMES).fit({"P1": np.zeros((5, 2))})
+
+
+def test_conditions_on_the_same_regions_share_one_scoring(regions, tmp_path):
+    """A way back and an "outside" condition from the same place score each state once; the memo
+    of the last state never answers for another state."""
+    back, out = regions.condition("P1", "P2"), regions.outside_condition("P2", leave_below=-3.0)
+    other = regions.condition("P1")                    # P1 only: different regions, not shared
+    for name, c in (("back", back), ("out", out), ("other", other)):
+        c.save(tmp_path / f"{name}.npz")
+    conds = {n: load_condition(tmp_path / f"{n}.npz", input_names=NAMES) for n in ("back", "out", "other")}
+    share_regions(conds)
+    assert conds["back"].regions is conds["out"].regions is not conds["other"].regions
+    X = np.concatenate([place_states(6, n=200)["P1"], place_states(6, n=200)["P2"], [DISTURBED, UPRIGHT, FAR]])
+    buf = np.empty(len(NAMES))                         # one buffer, refilled each tick: as the net's guards do
+    got = {n: [] for n in conds}
+    for x in X:
+        buf[:] = x
+        for n, c in conds.items():
+            got[n].append(c(buf))
+    for n, ref in (("back", back), ("out", out), ("other", other)):
+        np.testing.assert_array_equal(got[n], ref.holds(X))

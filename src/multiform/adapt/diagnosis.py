@@ -63,11 +63,16 @@ class Diagnosis:
 
 
 def diagnose(apn: APN, traces: Sequence[Trace], region_scores: RegionScorer | None = None,
-             region_names: Sequence[str] = (), region_threshold: float = 0.5) -> Diagnosis:
+             region_names: Sequence[str] = (), region_threshold: float = 0.5,
+             leave_scores: Mapping[str, float] | None = None) -> Diagnosis:
     """Diagnose the failed trials among ``traces`` (all run on ``apn``).
 
     ``region_scores`` scores states (columns ``region_names`` of the traces' values) against every
-    place's learned region; with it the diagnosis finds where the state left its place.
+    place's learned region; with it the diagnosis finds where the state left its place (its score
+    fell below ``region_threshold``). Such a state counts as lost (no place relates to it) only if
+    the state then went below ``leave_scores[p]`` of its place p (default: the same threshold) with
+    still no place matching — the mentor succeeded from states just outside a region, so a catch
+    that strays a little is not a new place.
     """
     failed = [(i, tr) for i, tr in enumerate(traces) if not tr.success]
     d = Diagnosis(trials=len(traces), failures=len(failed))
@@ -97,7 +102,7 @@ def diagnose(apn: APN, traces: Sequence[Trace], region_scores: RegionScorer | No
             d.risky_choices[c.chosen] += 1
             d.safer_siblings.setdefault(c.chosen, Counter()).update(x for x in c.candidates if x != c.chosen)
         if region_scores is not None and region_names and last is not None:
-            ex = _exit(apn, i, tr, region_scores, region_names, region_threshold)
+            ex = _exit(apn, i, tr, region_scores, region_names, region_threshold, leave_scores or {})
             if ex is not None:
                 d.exits.append(ex)
     d.never_fired = [t for t in apn.transition_ids if t not in fired]
@@ -107,7 +112,7 @@ def diagnose(apn: APN, traces: Sequence[Trace], region_scores: RegionScorer | No
 
 
 def _exit(apn: APN, trial: int, tr: Trace, region_scores: RegionScorer, names: Sequence[str],
-          threshold: float, max_lag: float = 2.0) -> Exit | None:
+          threshold: float, leave_scores: Mapping[str, float], max_lag: float = 2.0) -> Exit | None:
     """Where the state left its place's region for good, shortly before the trial failed from that place
     (a disturbance throwing the state out), or None (the failure had another cause, e.g. a timeout)."""
     last = tr.firings[-1]
@@ -148,9 +153,20 @@ def _exit(apn: APN, trial: int, tr: Trace, region_scores: RegionScorer, names: S
         return None
     # the state a little after it left, once the push has shown its direction
     k = min(k + int(round(0.05 / tr.dt)), len(states) - 1)
+    best = _best_other(scores, place, k, threshold)
+    if best is None:
+        # lost only once further out than the mentor's successful stays ever went
+        far = np.flatnonzero(scores[place][k:] < leave_scores.get(place, threshold))
+        if len(far) == 0:
+            return None
+        k += int(far[0])
+        best = _best_other(scores, place, k, threshold)
     s = {p: float(v[k]) for p, v in scores.items()}
-    others = {p: v for p, v in s.items() if p != place}
-    best = max(others, key=others.get) if others else None
-    if best is not None and others[best] < threshold:
-        best = None
     return Exit(trial=trial, place=place, tick=start + k, state=states[k].tolist(), scores=s, best=best)
+
+
+def _best_other(scores: Mapping[str, np.ndarray], place: str, k: int, threshold: float) -> str | None:
+    """The best-scoring place other than ``place`` at row ``k``, if it reaches ``threshold``."""
+    others = {p: float(v[k]) for p, v in scores.items() if p != place}
+    best = max(others, key=others.get) if others else None
+    return best if best is not None and others[best] >= threshold else None

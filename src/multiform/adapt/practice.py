@@ -9,6 +9,7 @@ an uninterrupted one see the same trials.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
@@ -191,7 +192,10 @@ class Practice:
         regions = self.model.regions()
         scorer = regions.scores if regions is not None else None
         names = tuple(regions.input_names) if regions is not None else ()
-        d = diagnose(apn, traces, scorer, names)
+        leave = None
+        if regions is not None:
+            leave = {p: float(1.0 / (1.0 + math.exp(-z))) for p, z in self.learners.leave_floors().items()}
+        d = diagnose(apn, traces, scorer, names, leave_scores=leave)
         fix = repair(apn, d, self.learners, exhausted=frozenset(state.lambda_exhausted))
         if fix is None:
             state.repairs_without_effect += 1

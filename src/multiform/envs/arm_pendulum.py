@@ -64,7 +64,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
-from .osc import DEFAULT_GAINS, OBSERVATION_NAMES, TORQUE_LIMITS, Gains, Workspace, task_acceleration, torques_for
+from .osc import DEFAULT_GAINS, OBSERVATION_NAMES, TORQUE_LIMITS, Gains, Workspace, task_acceleration_list, torques_for
 
 COMMAND_NAMES = ("v_cmd",)
 NOMINAL = {"length": 0.4, "mass": 0.1, "damping": 2e-4}
@@ -133,6 +133,7 @@ class ArmPendulumEnv(gym.Env):
         self.workspace_centre = tuple(self.gains.centre)
         self.x_limit = float(self.gains.x_limit)
         self.torque_limits = TORQUE_LIMITS
+        self._neg_limits = -TORQUE_LIMITS
         if action_mode == "ee":
             v = self.gains.v_max
             self.action_space = gym.spaces.Box(-v, v, (1,), dtype=np.float64)
@@ -242,12 +243,12 @@ class ArmPendulumEnv(gym.Env):
     def step(self, action):
         m, d = self.model, self.data
         if self.action_mode == "ee":
-            a6 = task_acceleration(self._obs_list, float(action[0]), self.gains)
-            tau = torques_for(a6, m, d, self.torque_limits, self._work)
-        else:
-            tau = np.clip(np.asarray(action, dtype=np.float64), -self.torque_limits, self.torque_limits)
-        self._ctrl[:] = tau
-        self.last_torques = tau
+            a6 = task_acceleration_list(self._obs_list, float(action[0]), self.gains)
+            self._ctrl[:] = torques_for(a6, m, d, self.torque_limits, self._work)
+        else:     # np.minimum/np.maximum into ctrl: np.clip's Python wrapper costs more than the clipping
+            np.minimum(action, self.torque_limits, out=self._ctrl)
+            np.maximum(self._ctrl, self._neg_limits, out=self._ctrl)
+        self.last_torques = self._ctrl.copy()
         t = d.time
         if self._pulses:
             self._disturb(t)

@@ -33,6 +33,7 @@ kr, kw      1600, 80 orientation hold on the rotation-vector error
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import mujoco
@@ -93,20 +94,24 @@ def task_acceleration(obs: np.ndarray, v_cmd: float, gains: Gains = DEFAULT_GAIN
     orientation error is the rotation vector from the home orientation, so holding it at zero holds
     the pendulum's hinge axis along world y.
     """
-    o = obs.tolist() if isinstance(obs, np.ndarray) else obs
+    return np.array(task_acceleration_list(obs.tolist() if isinstance(obs, np.ndarray) else obs, v_cmd, gains))
+
+
+def task_acceleration_list(o: Sequence[float], v_cmd: float, gains: Gains = DEFAULT_GAINS) -> list[float]:
+    """:func:`task_acceleration` on an observation list, as a list: the 1 kHz path (plain floats)."""
     g = gains
     x, xd = o[_X], o[_XD]
     ax = g.kv * (limited_velocity(float(v_cmd), x, g) - xd)
     ax = min(max(ax, -g.a_max), g.a_max)
     cy, cz = g.centre[1], g.centre[2]
     kp, kd, kr, kw = g.kp, g.kd, g.kr, g.kw
-    return np.array([
+    return [
         ax,
         -kp * (o[_EY] - cy) - kd * o[_VY],
         -kp * (o[_EZ] - cz) - kd * o[_VZ],
         -kr * o[_R0] - kw * o[_W0],
         -kr * o[_R0 + 1] - kw * o[_W0 + 1],
-        -kr * o[_R0 + 2] - kw * o[_W0 + 2]])
+        -kr * o[_R0 + 2] - kw * o[_W0 + 2]]
 
 
 class Workspace:

@@ -23,6 +23,7 @@ names its servo and loading it can never run code from the file.
 from __future__ import annotations
 
 import math
+import operator
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -49,14 +50,14 @@ class Servo:
     rows (fitting) — one formula for both.
     """
 
-    accel: Callable[[np.ndarray, np.ndarray], np.ndarray]      # (obs, command) -> a (6,)
+    accel: Callable[[Sequence[float], Sequence[float]], list]  # (obs list, command) -> a, 6 floats
     observation_names: tuple[str, ...]
     load: Callable[[Any, Sequence, Sequence], tuple]             # (math|numpy, obs, a) -> GP load inputs
     basis: Callable[[Any, Sequence, Sequence], tuple]            # (math|numpy, obs, a) -> linear load features
 
 
 def _arm_pendulum_servo() -> Servo:
-    from ..envs.osc import OBSERVATION_NAMES, task_acceleration
+    from ..envs.osc import OBSERVATION_NAMES, task_acceleration_list
     ti, wi = OBSERVATION_NAMES.index("theta"), OBSERVATION_NAMES.index("omega")
 
     def load(m: Any, o: Sequence, a: Sequence) -> tuple:
@@ -71,7 +72,7 @@ def _arm_pendulum_servo() -> Servo:
         w2, ax, az = om * om, a[0], a[2]
         return s, c, om, w2 * s, w2 * c, s * c, c * c, ax * c * c, ax * s * c, az * s * s, az * s * c
 
-    return Servo(lambda obs, cmd: task_acceleration(obs, float(cmd[0])), OBSERVATION_NAMES, load, basis)
+    return Servo(lambda obs, cmd: task_acceleration_list(obs, cmd[0]), OBSERVATION_NAMES, load, basis)
 
 
 SERVOS: dict[str, Callable[[], Servo]] = {"arm_pendulum": _arm_pendulum_servo}
@@ -136,6 +137,7 @@ class InverseDynamicsModel(BaseEstimator):
     def _prepare(self) -> None:
         self._sv = self._servo()
         self._qi = self._joint_index(self._sv)
+        self._joints = operator.itemgetter(*self._qi)
         # The linear part folded into one affine map of the raw features: τ_lin = F·W + b.
         self._W = self.coef_[:-1] / self.f_scale_[:, None]
         self._b = self.coef_[-1] - self.f_mean_ @ self._W
@@ -152,11 +154,14 @@ class InverseDynamicsModel(BaseEstimator):
         (:class:`Servo`) and the linear part is one precomputed affine map."""
         sv = self._sv
         o = obs.tolist()
-        a = sv.accel(obs, command).tolist()
-        joints = [o[i] for i in self._qi]
+        a = sv.accel(o, command)
+        joints = list(self._joints(o))
         g = np.array(joints + list(sv.load(math, o, a)) + a)
         f = np.array(joints + a + list(sv.basis(math, o, a)))
-        return f @ self._W + self._b + self.gp_.predict_one(g)
+        tau = self.gp_.predict_one(g)
+        tau += self._b
+        tau += f @ self._W
+        return tau
 
     def summary(self) -> dict[str, Any]:
         s = self.gp_.summary()

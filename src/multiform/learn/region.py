@@ -194,17 +194,36 @@ class PlaceRegions(BaseEstimator):
         self._groups = [np.flatnonzero(np.array(groups) == i) for i in range(len(self.places_))]
         self._tau = np.array([self.densities_[p].tau for p in self.places_])
         self._slope = np.array([self.densities_[p].slope for p in self.places_])
+        self._memo_key: bytes | None = None
+        self._memo = np.empty(0)
+        self._amax = float(self._const.max())
+        self._tau_shifted = self._tau - self._amax
         self._index = {p: i for i, p in enumerate(self.places_)}
 
     def logits_one(self, x: np.ndarray) -> np.ndarray:
-        """z per place (``places_`` order) for one raw state; the control-rate path."""
+        """z per place (``places_`` order) for one raw state; the control-rate path.
+
+        The result of the last state is memoised (conditions sharing these regions, see
+        :func:`share_regions`, ask about the same state in the same tick); the returned array is
+        shared, do not modify it."""
+        key = x.tobytes()
+        if key == self._memo_key:
+            return self._memo
         y = x @ self._W
         y -= self._c
         y *= y
         a = self._const - y @ self._S
-        m = a.max()
-        # a place whose components all underflow gets ℓ ≈ max - 690: far outside it, as it should be
-        return (m + np.log(np.exp(a - m) @ self._G + 1e-300) - self._tau) * self._slope
+        # every a ≤ max(const), so exp(a - max(const)) cannot overflow; a place whose components all
+        # underflow gets ℓ ≈ max(const) - 690: far outside it, as it should be
+        a -= self._amax
+        np.exp(a, out=a)
+        s = a @ self._G
+        s += 1e-300
+        np.log(s, out=s)
+        s -= self._tau_shifted
+        s *= self._slope
+        self._memo_key, self._memo = key, s
+        return s
 
     def logits(self, X: np.ndarray) -> np.ndarray:
         """z for rows of raw states ``X``: shape (n, n_places)."""
@@ -251,9 +270,13 @@ class PlaceRegions(BaseEstimator):
                 raise KeyError(f"no region for place {p!r} (have: {', '.join(self.places_)})")
         return RegionCondition(self._subset(places), "into", into, rather_than, leave_below)
 
-    def outside_condition(self) -> RegionCondition:
-        """True when the state belongs to no place's region."""
-        return RegionCondition(self._subset(list(self.places_)), "outside")
+    def outside_condition(self, leaving: str | None = None, leave_below: float = 0.0) -> RegionCondition:
+        """True when the state belongs to no place's region; with ``leaving``, that place counts as
+        left only below ``leave_below`` (≤ 0), as in :meth:`condition`."""
+        if leaving is not None and leaving not in self.densities_:
+            raise KeyError(f"no region for place {leaving!r} (have: {', '.join(self.places_)})")
+        return RegionCondition(self._subset(list(self.places_)), "outside", rather_than=leaving,
+                               leave_below=leave_below)
 
     def _subset(self, places: Sequence[str]) -> PlaceRegions:
         r = PlaceRegions(**self.get_params())
@@ -331,7 +354,9 @@ class RegionCondition:
     that "left" means further out than any state the mentor still succeeded from). Leaving is required, not merely scoring
     higher: the first states of a stay (a balance catch just begun) can score higher for the place
     the token came from, and a way back that fired there would undo every entry at once;
-    ``mode="outside"``: holds when no place's score reaches the threshold. Decided
+    ``mode="outside"``: holds when no place's score reaches the threshold (and ``rather_than``, the
+    place being left, is below ``leave_below``: a catch transient just outside every region is not
+    "lost"). Decided
     on the calibrated logits z (score = σ(z), so score ≥ 0.5 ⇔ z ≥ 0) — no exponentials saturate.
     """
 
@@ -348,18 +373,23 @@ class RegionCondition:
         self.input_names = tuple(regions.input_names)
         self._i = regions._index[into] if into else -1
         self._j = regions._index[rather_than] if rather_than else -1
+        # "outside": every place below 0, the place being left below its own (lower) bound
+        self._outside_bound = np.zeros(len(regions.places_))
+        if self._j >= 0:
+            self._outside_bound[self._j] = self.leave_below
+        self._outside_list = self._outside_bound.tolist()
 
     def __call__(self, x: np.ndarray) -> bool:
         z = self.regions.logits_one(x)
-        if self.mode == "outside":
-            return bool(z.max() < 0.0)
+        if self.mode == "outside":       # plain floats: numpy's .all() dispatch costs more here
+            return all(v < b for v, b in zip(z.tolist(), self._outside_list))
         return bool(z[self._i] >= 0.0 and (self._j < 0 or z[self._j] < self.leave_below))
 
     def holds(self, X: np.ndarray) -> np.ndarray:
         """Vectorised :meth:`__call__` over rows."""
         Z = self.regions.logits(X)
         if self.mode == "outside":
-            return Z.max(axis=1) < 0.0
+            return (Z < self._outside_bound).all(axis=1)
         ok = Z[:, self._i] >= 0.0
         return ok & (Z[:, self._j] < self.leave_below) if self._j >= 0 else ok
 
@@ -386,6 +416,28 @@ class RegionCondition:
         if mode == "into" and into is None:
             raise InvalidInput("an 'into' condition needs its place", file=f, element="into")
         return cls(regions, mode, into, away, float(leave))
+
+
+def _same_regions(a: PlaceRegions, b: PlaceRegions) -> bool:
+    arrays_a, meta_a = a.to_arrays()
+    arrays_b, meta_b = b.to_arrays()
+    return meta_a == meta_b and arrays_a.keys() == arrays_b.keys() and \
+        all(np.array_equal(arrays_a[k], arrays_b[k]) for k in arrays_a)
+
+
+def share_regions(conditions: Mapping[str, Any]) -> None:
+    """Let region conditions built on identical regions (a way back and an "outside" condition
+    from the same place, say) share one :class:`PlaceRegions`, so that the state of a tick is
+    scored once for all of them (:meth:`PlaceRegions.logits_one` memoises the last state)."""
+    kept: list[PlaceRegions] = []
+    for cond in conditions.values():
+        if not isinstance(cond, RegionCondition):
+            continue
+        same = next((r for r in kept if _same_regions(r, cond.regions)), None)
+        if same is None:
+            kept.append(cond.regions)
+        else:
+            cond.regions = same
 
 
 def _sigmoid(z: np.ndarray) -> np.ndarray:

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import operator
 import time as _time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, Protocol
 
 import gymnasium as gym
@@ -39,7 +39,7 @@ class Law(Protocol):
 class InverseModel(Protocol):
     """Maps the robot's observation and an end-effector command to joint torques."""
 
-    def torques(self, obs: np.ndarray, command: np.ndarray) -> np.ndarray: ...
+    def torques(self, obs: np.ndarray, command: Sequence[float]) -> np.ndarray: ...
 
 
 class Perturbation(Protocol):
@@ -113,14 +113,11 @@ class Executor:
         n_obs, n_cmd, n_val = len(self.obs_names), len(self.cmd_names), len(self._value_names)
         n_places = len(self.apn.places)
         rec_obs = np.zeros((n_ticks, n_obs), np.float32)
-        rec_val = np.zeros((n_ticks, n_val), np.float32)
+        rec_slots = np.zeros((n_ticks, len(runner.values)), np.float32)     # every value slot of the net
         rec_cmd = np.zeros((n_ticks, n_cmd), np.float32)
         rec_raw = np.zeros((n_ticks, n_cmd), np.float32)
-        rec_mark = np.zeros((n_ticks, n_places), np.int16)
-        rec_dwell = np.zeros((n_ticks, n_places), np.float32)
+        marks: list[tuple[int, list[int]]] = [(0, list(runner.marking))]    # (tick, marking) at each change
         dwell_slots = [runner.slots[f"dwell_{p}"] for p in self.apn.place_ids]
-        dwell_get = operator.itemgetter(*dwell_slots)
-        val_get = operator.itemgetter(*range(n_val)) if n_val > 1 else (lambda v: v[0])
         poses: list[np.ndarray] = []
         data = getattr(env.unwrapped, "data", None)
         cmd = [0.0] * n_cmd
@@ -132,12 +129,11 @@ class Executor:
         dt = self.dt
         for k in range(n_ticks):
             t = k * dt
-            runner.tick(obs.tolist(), t)
+            if runner.tick(obs.tolist(), t):
+                marks.append((k, list(runner.marking)))
             values = runner.values
             rec_obs[k] = obs
-            rec_val[k] = val_get(values)
-            rec_mark[k] = runner.marking
-            rec_dwell[k] = dwell_get(values)
+            rec_slots[k] = values
             if qpos_every and k % qpos_every == 0 and data is not None:
                 poses.append(data.qpos.copy())
             if runner.outcome is not None:
@@ -167,7 +163,7 @@ class Executor:
             cmd = sat.command(cmd, values, k)
             rec_cmd[k] = cmd
             if inverse is not None:
-                action = sat.torque(inverse.torques(obs, np.asarray(cmd)), k)
+                action = sat.torque(inverse.torques(obs, cmd), k)
             else:
                 action = np.asarray(cmd)
             if perturb is not None:
@@ -180,9 +176,13 @@ class Executor:
         n = min(k + 1, n_ticks)
         if outcome == "timeout":
             n = n_ticks
-        return Trace(seed=seed, dt=dt, obs=rec_obs[:n], observation_names=self.obs_names, values=rec_val[:n],
+        rec_mark = np.zeros((n, n_places), np.int16)
+        for (k0, mk), (k1, _) in zip(marks, marks[1:] + [(n, None)]):
+            rec_mark[k0:k1] = mk
+        rec_val, rec_dwell = rec_slots[:n, :n_val].copy(), rec_slots[:n, dwell_slots]
+        return Trace(seed=seed, dt=dt, obs=rec_obs[:n], observation_names=self.obs_names, values=rec_val,
                      value_names=self._value_names, commands=rec_cmd[:n], raw_commands=rec_raw[:n],
-                     command_names=self.cmd_names, marking=rec_mark[:n], dwell=rec_dwell[:n],
+                     command_names=self.cmd_names, marking=rec_mark, dwell=rec_dwell,
                      place_ids=self.apn.place_ids, firings=list(runner.firings), outcome=outcome,
                      choices=list(runner.choices),
                      net_version=self.net_version, options=dict(options or {}), clips=sat.log.to_json(),

@@ -55,6 +55,8 @@ class Saturator:
         self.divergence = float(safety.get("divergence", 1e6))
         self._tlo = None if torque_low is None else np.asarray(torque_low, dtype=float)
         self._thi = None if torque_high is None else np.asarray(torque_high, dtype=float)
+        self._tlo_list = [] if self._tlo is None else self._tlo.tolist()
+        self._thi_list = [] if self._thi is None else self._thi.tolist()
         self.reset()
 
     def reset(self) -> None:
@@ -97,10 +99,9 @@ class Saturator:
         """Clip joint torques to the actuator limits (in place)."""
         if self._tlo is None:
             return tau
-        over = tau > self._thi
-        under = tau < self._tlo
-        if over.any() or under.any():
-            excess = float(max(np.max(tau - self._thi), np.max(self._tlo - tau)))
+        # plain floats: on six values numpy's .any()/.clip dispatch costs more than the comparisons
+        excess = max(max(t - h, l - t) for t, l, h in zip(tau.tolist(), self._tlo_list, self._thi_list))
+        if excess > 0.0:
             self.log.add("joint torque", tick, excess)
             np.clip(tau, self._tlo, self._thi, out=tau)
         return tau
