@@ -17,6 +17,7 @@ import os
 import time
 
 import numpy as np
+from sklearn.base import clone
 
 from _timing import describe, latencies, single_thread
 from multiform.learn.gp import GPLaw
@@ -106,9 +107,17 @@ def main() -> None:
               f"measured; here {ref:.1f} µs ({ref / 14:.1f}×). numpy's float64 exp is "
               f"{'SIMD (AVX-512)' if avx512() else 'scalar here (no AVX-512 on this CPU), ≈ 5 ns a point'}, "
               "and the exp of every training point dominates the exact mean")
+        ref = clone(exact).set_params(fast_exp=False).fit(X, Y, theta=theta)
+        Xq = np.vstack([Xt, Xt + Xt.std(0) * rng.uniform(0.5, 5, (len(Xt), 1)) * rng.normal(size=Xt.shape)])
+        dev = max(np.max(np.abs(exact.predict_one(x) - ref.predict_one(x)) / exact.y_scale_) for x in Xq)
+        print(f"  float32 kernel exponentials: {'on' if exact._fast else 'off'} (probe-measured deviation "
+              f"{exact.fast_exp_error_:.2e} of y scale; admitted ≤ 2e-4); max deviation from the float64 path "
+              f"over {len(Xq)} states near and up to 5 std away: {dev:.2e} of y scale")
         t = timed("exact n=2000, mean only (predict_one)", exact.predict_one, states, args.calls, args.repeats)
         p99 = np.percentile(t, 99) * 1e6
         print(f"  target p99 ≤ 25 µs: {'met' if p99 <= 25 else 'NOT met'} ({p99:.2f} µs)")
+        timed("exact n=2000, mean only, float64 exponentials (fast_exp=False)", ref.predict_one, states,
+              args.calls, args.repeats)
         timed(f"exact n=2000 mean + variance through its FITC companion (default, n > "
               f"exact_var_max_n={exact.exact_var_max_n})", exact.predict_one_var, states, args.calls, args.repeats)
         for n in (250, 500, 1000, 2000):
@@ -130,11 +139,14 @@ def main() -> None:
     print(f"  fit (hyperparameters on 1,000 points + k-means + FITC on 50,000): {fit_s:.2f} s; mode "
           f"{ss['mode']}, held-out nRMSE " + ", ".join(f"{v:.4f}" for v in ss["heldout_nrmse"]))
     with single_thread():
+        print(f"  float32 exponentials for the sparse mean: {'on' if sparse._fast else 'off'} (probe-measured "
+              f"deviation {sparse.fast_exp_error_:.2e} of y scale: FITC weights up to "
+              f"{np.abs(sparse.beta_).max():.2g} cancel); the variance is float64 in every mode")
         timed("sparse m=300, mean only", sparse.predict_one, states, args.calls, args.repeats)
         t = timed("sparse m=300, mean + variance (predict_one_var)", sparse.predict_one_var, states, args.calls, args.repeats)
         p99 = np.percentile(t, 99) * 1e6
         print(f"  target p99 ≤ 30 µs: {'met' if p99 <= 30 else 'NOT met'} ({p99:.2f} µs)")
-    print(f"\nload average at the end: {os.getloadavg()[0]:.2f}")
+    print(f"\nload average at the end: {os.getloadavg()[0]:.2f} (1 min), {os.getloadavg()[1]:.2f} (5 min)")
 
 
 if __name__ == "__main__":
