@@ -103,6 +103,7 @@ def test_transition_back_added_when_the_state_matches_another_place():
     t7 = r.apn.transition("t7")
     assert dict(t7.inputs) == {"P2": 1} and dict(t7.outputs) == {"P1": 1}
     assert t7.law == "swing_up" and t7.condition.model == "in_P1"      # P1's law, P1's region
+    assert t7.condition.unless == ("t1",)                               # yields to the way in
     assert fake.calls == [("region", "P1", "P2")]
 
 

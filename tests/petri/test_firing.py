@@ -6,6 +6,7 @@ from hypothesis import strategies as st
 from multiform.errors import InvalidInput
 from multiform.petri.firing import NetRunner
 from multiform.petri.net import APN, Condition, Place, Transition
+from multiform.petri.revision import add_transition
 from multiform.petri.skillfile import load_skill
 
 from .strategies import nets
@@ -131,3 +132,33 @@ def test_concurrent_tokens():
             r.tick([], k * 1e-3)
         outcomes.add(r.outcome)
     assert "success" in outcomes
+
+
+def test_a_way_back_yields_to_the_way_in():
+    """t7 (P2 -> P1) written to yield to t1 (P1 -> P2): where both conditions hold, t1 fires and
+    t7 does not, so the token does not flip between the places every tick."""
+    class Holds:
+        input_names = ("theta",)
+
+        def __call__(self, x):
+            return abs(float(x[0])) > 0.2                 # "in P1's region" by the angle alone
+
+    apn, _ = add_transition(load_skill("pendulum"), "t7", {"in": ["P2"], "out": ["P1"], "law": "swing_up",
+                                                            "condition": {"model": "back", "unless": "t1"}}, "test")
+    assert apn.transition("t7").condition.to_data() == {"model": "back", "unless": ["t1"]}
+    runner = NetRunner(apn, ["theta", "omega", "x", "xdot"], learned={"back": Holds()}, rng=0)
+    assert runner.tick([3.0, 0.0, 0.0, 0.0], 0.0) == ["t0"]
+    assert runner.tick([0.25, 0.5, 0.0, 0.0], 0.1) == ["t1"]         # t1 holds (|θ| < 0.3, |ω| < 2)
+    assert runner.tick([0.25, 0.5, 0.0, 0.0], 0.101) == []           # back holds too, but yields to t1
+    assert runner.tick([0.6, 3.0, 0.0, 0.0], 0.2) == ["t7"]          # fallen: only the way back holds
+    without, _ = add_transition(load_skill("pendulum"), "t7", {"in": ["P2"], "out": ["P1"], "law": "swing_up",
+                                                               "condition": {"model": "back"}}, "test")
+    runner = NetRunner(without, ["theta", "omega", "x", "xdot"], learned={"back": Holds()}, rng=0)
+    runner.tick([3.0, 0.0, 0.0, 0.0], 0.0), runner.tick([0.25, 0.5, 0.0, 0.0], 0.1)
+    assert runner.tick([0.25, 0.5, 0.0, 0.0], 0.101) == ["t7"]       # the flip the yield prevents
+
+
+def test_unless_names_a_transition_of_the_net():
+    with pytest.raises(InvalidInput, match="unless"):
+        add_transition(load_skill("pendulum"), "t7", {"in": ["P2"], "out": ["P1"],
+                                                      "condition": {"model": "back", "unless": ["t99"]}}, "test")

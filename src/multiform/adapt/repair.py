@@ -8,7 +8,7 @@
    mentor's switching states).
 3. **Transition back** — when the state left its place and matches another place's region, and no
    transition goes there, a transition to that place is added, run by that place's law, firing when
-   the state belongs to that place rather than its own (the paper's t7).
+   the state belongs to that place rather than its own (the paper's t7), and yielding to the way in.
 4. **New place** — when the state matches no place, a place is added for it, reached by a new
    transition, with a way back to the nearest place.
 
@@ -142,8 +142,11 @@ def add_transition_back(apn: APN, d: Diagnosis, learners: Learners, min_exits: i
                   f"led back, so {tid} goes from {src} to {dst} with {dst}'s law {law}")
         ev = {"exits": n, "example_state": exits[0].state, "scores": exits[0].scores,
               "into_failure": dict(d.into_failure), **evidence}
+        # it yields to the way in (dst -> src): where both hold, the token would flip every tick
+        ways_in = [t.id for t in apn.transitions if src in t.outputs and dst in t.inputs and src not in t.inputs]
+        cond: dict[str, Any] = {"model": name, "unless": ways_in} if ways_in else {"model": name}
         spec = {"label": f"back to {apn.place(dst).label or dst}", "in": [src], "out": [dst],
-                "lambda": 1.0, "condition": {"model": name}}
+                "lambda": 1.0, "condition": cond}
         if law:
             spec["law"] = law
         new, rev = add_transition(apn, tid, spec, reason, ev)

@@ -113,6 +113,12 @@ class NetRunner:
                 self._guards.append(self._learned_guard(learned[t.condition.model]))
             else:
                 self._guards.append(t.condition.guard.compile({**self.slots, "dwell": dwell}))
+        # A condition that yields to other transitions holds only where none of theirs does.
+        own = list(self._guards)
+        for j, t in enumerate(apn.transitions):
+            if t.condition.unless:
+                others = [own[apn.transition_ids.index(u)] for u in t.condition.unless]
+                self._guards[j] = _yielding(own[j], others)
         self._n_slots = n_slots
         self._pre_cols = [[(apn.place_index(p), w) for p, w in t.inputs.items()] for t in apn.transitions]
         self._post_cols = [[(apn.place_index(p), w) for p, w in t.outputs.items()] for t in apn.transitions]
@@ -272,3 +278,18 @@ class NetRunner:
 
     def fire_counts(self) -> dict[str, int]:
         return {t: int(self.values[s]) for t, s in zip(self.apn.transition_ids, self._fires_slot)}
+
+
+def _yielding(guard: Callable[[list[float]], bool], others: list[Callable[[list[float]], bool]]
+              ) -> Callable[[list[float]], bool]:
+    def g(v: list[float]) -> bool:
+        if not guard(v):
+            return False
+        for o in others:
+            try:
+                if o(v):
+                    return False
+            except (ArithmeticError, ValueError):      # an undefined condition does not hold
+                pass
+        return True
+    return g

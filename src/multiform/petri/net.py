@@ -8,7 +8,7 @@ are maneuvers run by one control law each; ``lam`` is a transition's firing weig
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
@@ -23,10 +23,16 @@ CLOCK_VARIABLES = ("time", "dwell")
 
 @dataclass(frozen=True)
 class Condition:
-    """A firing condition: a guard expression, or a reference to a learned model by name."""
+    """A firing condition: a guard expression, or a reference to a learned model by name.
+
+    A learned condition may name transitions it yields to (``unless``): it holds only where none of
+    their conditions holds. A way back from P2 to P1 learned from regions yields to the way in (P1
+    to P2); otherwise at a state where both hold the token would flip between the places every tick.
+    """
 
     guard: Guard | None = None
     model: str | None = None
+    unless: tuple[str, ...] = ()
 
     @classmethod
     def always(cls) -> Condition:
@@ -37,8 +43,8 @@ class Condition:
         return cls(guard=parse_guard(text, allowed))
 
     @classmethod
-    def learned(cls, name: str) -> Condition:
-        return cls(model=name)
+    def learned(cls, name: str, unless: Sequence[str] = ()) -> Condition:
+        return cls(model=name, unless=tuple(unless))
 
     @property
     def is_learned(self) -> bool:
@@ -48,12 +54,16 @@ class Condition:
     def variables(self) -> frozenset[str]:
         return self.guard.variables if self.guard is not None else frozenset()
 
-    def to_data(self) -> str | dict[str, str]:
-        """The skill-file form: the expression text, or ``{"model": name}``."""
-        return {"model": self.model} if self.model is not None else self.guard.text
+    def to_data(self) -> str | dict[str, Any]:
+        """The skill-file form: the expression text, or ``{"model": name}`` (with ``unless``)."""
+        if self.model is None:
+            return self.guard.text
+        return {"model": self.model, "unless": list(self.unless)} if self.unless else {"model": self.model}
 
     def __str__(self) -> str:
-        return f"learned:{self.model}" if self.model is not None else self.guard.text
+        if self.model is None:
+            return self.guard.text
+        return f"learned:{self.model}" + (f" unless {', '.join(self.unless)}" if self.unless else "")
 
 
 @dataclass(frozen=True)

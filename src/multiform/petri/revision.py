@@ -107,7 +107,8 @@ def set_condition(apn: APN, transition: str, condition: str | Mapping[str, str],
         raise InvalidInput(f"unknown transition {transition!r}", element="set_condition")
     problems: list[Problem] = []
     cond = parse_condition(condition, f"transitions.{transition}.condition", apn.condition_variables(),
-                      lambda el, msg: problems.append(Problem("", el, msg)))
+                           lambda el, msg: problems.append(Problem("", el, msg)),
+                           set(apn.transition_ids) - {transition})
     _check(problems)
     t = apn.transition(transition)
     out = apn.with_transition(replace(t, condition=cond))

@@ -436,21 +436,35 @@ def parse_transitions(raw: Mapping[str, Any], place_ids: set[str], transition_id
                 law = None
             elif laws and law not in laws:
                 bad(f"{el}.law", f"unknown law {law!r} (laws: {', '.join(laws)})")
-        cond = parse_condition(spec.get("condition", "true"), f"{el}.condition", allowed, bad)
+        cond = parse_condition(spec.get("condition", "true"), f"{el}.condition", allowed, bad,
+                               transition_ids - {tid})
         out.append(Transition(id=tid, inputs=inputs, outputs=outputs, law=law, lam=float(lam),
                               condition=cond, label=str(spec.get("label", "") or "")))
     return out
 
 
-def parse_condition(raw: Any, el: str, allowed: frozenset[str], bad) -> Condition:
+def parse_condition(raw: Any, el: str, allowed: frozenset[str], bad,
+                    transitions: set[str] | frozenset[str] = frozenset()) -> Condition:
+    """An expression, or ``{model: <name>}`` with optional ``unless: <transition id(s)>`` among
+    ``transitions`` (the other transitions of the net)."""
     if isinstance(raw, bool):
         raw = "true" if raw else "false"
     if isinstance(raw, Mapping):
         model = raw.get("model")
-        if set(raw) != {"model"} or not isinstance(model, str) or not IDENT.match(model):
-            bad(el, "a learned condition is written {model: <name>}")
+        if not set(raw) <= {"model", "unless"} or not isinstance(model, str) or not IDENT.match(model):
+            bad(el, "a learned condition is written {model: <name>} or {model: <name>, unless: [<transition>, ...]}")
             return Condition.always()
-        return Condition.learned(model)
+        unless = raw.get("unless", [])
+        unless = [unless] if isinstance(unless, str) else unless
+        if not isinstance(unless, list) or not all(isinstance(u, str) for u in unless):
+            bad(f"{el}.unless", f"must be a transition id or a list of them, got {raw.get('unless')!r}")
+            return Condition.always()
+        unknown = [u for u in unless if u not in transitions]
+        if unknown:
+            bad(f"{el}.unless", f"unknown transition(s) {', '.join(map(repr, unknown))} "
+                                f"(others: {', '.join(sorted(transitions)) or 'none'})")
+            return Condition.always()
+        return Condition.learned(model, unless)
     if not isinstance(raw, str):
         bad(el, f"must be an expression or {{model: <name>}}, got {raw!r}")
         return Condition.always()
