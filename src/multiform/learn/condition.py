@@ -193,3 +193,39 @@ def load_condition(path: str | os.PathLike, input_names: Sequence[str] | None = 
     if '"kind": "region_condition"' in header:
         return RegionCondition.load(path, input_names)
     return LearnedCondition.load(path, input_names)
+
+
+def switch_windows(apn: Any, episodes: Sequence[Any], transition: str, names: Sequence[str], before: float = 0.0,
+                   after: float = 0.1, near: tuple[str, float] | None = None) -> list[tuple[int, int, np.ndarray]]:
+    """The states around each of the mentor's successful switches into ``transition``.
+
+    One entry per switch (the first sample ``s`` of a segment of ``transition`` the mentor labelled
+    success): ``(episode index, s, states)`` with the values of ``names`` at the samples from
+    ``before`` s before ``s`` to ``after`` s after it (both ends included). ``near = (v, r)``
+    keeps only the samples with ``|v| <= r`` (``v`` one of ``names``); a switch left with no
+    sample is still listed, with an empty array, so callers can count it.
+    """
+    from .views import success_mask, value_matrix
+
+    out: list[tuple[int, int, np.ndarray]] = []
+    if not episodes:
+        return out
+    col = list(names).index(near[0]) if near is not None else -1
+    for k, ep in enumerate(episodes):
+        ok = success_mask(ep)
+        starts = [s for s, _, tag in ep.segments() if tag == transition and ok[s]]
+        if not starts:
+            continue
+        V = value_matrix(apn, ep, names)
+        b, a = int(round(before / ep.dt)), int(round(after / ep.dt))
+        for s in starts:
+            W = V[max(0, s - b):min(len(V), s + a + 1)]
+            if near is not None:
+                W = W[np.abs(W[:, col]) <= near[1]]
+            out.append((k, s, W))
+    return out
+
+
+def window_hits(cond: Any, windows: Sequence[tuple[int, int, np.ndarray]]) -> np.ndarray:
+    """Per window of :func:`switch_windows`: whether ``cond`` holds at some state of it (False if empty)."""
+    return np.array([bool(len(W)) and bool(cond.holds(W).any()) for _, _, W in windows], dtype=bool)

@@ -25,7 +25,7 @@ from .gp import GPLaw
 from .judge import Judge
 from .labels import LabelRecord, LabelStore, records_from_episode
 from .region import PlaceRegions
-from .condition import LearnedCondition
+from .condition import LearnedCondition, switch_windows, window_hits
 from .views import law_data, place_episode, place_samples, switch_data, value_matrix
 
 Progress = Callable[[str], None]
@@ -206,47 +206,62 @@ class TrainingReport:
 
 SWITCH_GRID = ({"C": 10.0, "gamma": 1.0}, {"C": 10.0, "gamma": 3.0}, {"C": 100.0, "gamma": 1.0},
                {"C": 100.0, "gamma": 3.0}, {"C": 100.0, "gamma": 10.0})
+SWITCH_WINDOWS = (0.02, 0.05, 0.1, 0.2)     # s after a switch whose states are positives
 
 
 def fit_switch_condition(apn: APN, episodes: Sequence[Episode], transition: str, names: Sequence[str],
-                         seed: int = 0, max_false_positive: float = 0.01, folds: int = 3
+                         seed: int = 0, max_false_positive: float = 0.01, folds: int = 3,
+                         windows: Sequence[float] = SWITCH_WINDOWS, moment: float = 0.1
                          ) -> tuple[LearnedCondition, dict[str, Any]]:
     """Learn when the mentor switches into ``transition`` (the paper's relearned t1 condition).
 
     An RBF SVM separates the mentor's switching states from the states of the maneuver before, far
-    from any switch (:func:`~.views.switch_data`). C and γ are chosen by cross-validation over whole
-    demonstrations: the highest hit rate at held-out switches among the settings whose rate of
-    holding on held-out non-switch states stays under ``max_false_positive`` (a condition that fires
-    early makes the robot switch into a maneuver it cannot finish), else the lowest such rate.
+    from any switch (:func:`~.views.switch_data`). A person's switch is a moment, not a sample (a
+    reaction time of tens of ms), so how long after each switch the states count as positives
+    (``windows``, s) is chosen with C and γ by cross-validation over whole demonstrations: the
+    highest rate of held-out switches at which the condition holds somewhere in the switch's
+    ``moment`` (the first ``moment`` s of the switch), among the settings whose rate of holding on
+    held-out non-switch states stays under ``max_false_positive`` (a condition that fires early
+    makes the robot switch into a maneuver it cannot finish), else the lowest such rate; ties go to
+    the higher hit rate at the switches' first samples (switching as early as the mentor did), then
+    the lower false-positive rate, then the shorter window.
     """
-    d = switch_data(apn, episodes, transition, names)
     n = len(episodes)
     rng = np.random.default_rng(seed)
     order = rng.permutation(n)
     parts = [order[i::folds] for i in range(folds)] if n >= folds else [order]
+    moments = switch_windows(apn, episodes, transition, names, before=0.0, after=moment)
+    mom_ep = np.array([k for k, _, _ in moments], dtype=int)
     scores = []
-    for params in SWITCH_GRID:
-        hits, fps = [], []
-        for te in parts:
-            pos_tr, neg_tr = ~np.isin(d.pos_episode, te), ~np.isin(d.neg_episode, te)
-            sw_te, neg_te = np.isin(d.switch_episode, te), ~neg_tr
-            if pos_tr.sum() < 2 or not sw_te.any() or neg_tr.sum() < 10 or not neg_te.any():
-                continue
-            c = LearnedCondition(input_names=tuple(names), random_state=seed, **params)
-            c.fit_switches(d.positives[pos_tr], d.negatives[neg_tr])
-            hits.append(float(c.holds(d.switch_states[sw_te]).mean()))
-            fps.append(float(c.holds(d.negatives[neg_te]).mean()))
-        if hits:
-            scores.append((params, float(np.mean(hits)), float(np.mean(fps))))
+    data = {}
+    for window in windows:
+        d = data[window] = switch_data(apn, episodes, transition, names, window=window)
+        for params in SWITCH_GRID:
+            hits, exact, fps = [], [], []
+            for te in parts:
+                pos_tr, neg_tr = ~np.isin(d.pos_episode, te), ~np.isin(d.neg_episode, te)
+                sw_te, neg_te = np.isin(d.switch_episode, te), ~neg_tr
+                if pos_tr.sum() < 2 or not sw_te.any() or neg_tr.sum() < 10 or not neg_te.any():
+                    continue
+                c = LearnedCondition(input_names=tuple(names), random_state=seed, **params)
+                c.fit_switches(d.positives[pos_tr], d.negatives[neg_tr])
+                hits.append(float(window_hits(c, [m for m, e in zip(moments, mom_ep) if e in te]).mean()))
+                exact.append(float(c.holds(d.switch_states[sw_te]).mean()))
+                fps.append(float(c.holds(d.negatives[neg_te]).mean()))
+            if hits:
+                scores.append((window, params, float(np.mean(hits)), float(np.mean(exact)), float(np.mean(fps))))
     if not scores:
         raise ValueError(f"too few demonstrated switches into {transition} to learn its condition")
-    ok = [s for s in scores if s[2] <= max_false_positive]
-    params, hit, fp = max(ok, key=lambda s: (s[1], -s[2])) if ok else min(scores, key=lambda s: s[2])
-    d = switch_data(apn, episodes, transition, names)
+    ok = [s for s in scores if s[4] <= max_false_positive]
+    window, params, hit, exact, fp = (max(ok, key=lambda s: (s[2], s[3], -s[4], -s[0])) if ok
+                                      else min(scores, key=lambda s: s[4]))
+    d = data[window]
     cond = LearnedCondition(input_names=tuple(names), random_state=seed, **params).fit_switches(d.positives, d.negatives)
-    info = {"variables": list(names), "params": params, "cv_hit_at_switches": round(hit, 4),
+    info = {"variables": list(names), "params": params, "window": window, "moment": moment,
+            "cv_hit_in_moment": round(hit, 4), "cv_hit_at_switches": round(exact, 4),
             "cv_holds_far_from_switches": round(fp, 4), "mentor_switches": int(len(d.switch_states)),
             "positives": int(len(d.positives)), "negatives": int(len(d.negatives)),
             "support_vectors": int(cond.n_support_),
-            "cv": [{"params": p, "hit": round(h, 4), "false_positive": round(f, 5)} for p, h, f in scores]}
+            "cv": [{"window": w, "params": p, "hit_in_moment": round(h, 4), "hit": round(e, 4),
+                    "false_positive": round(f, 5)} for w, p, h, e, f in scores]}
     return cond, info
