@@ -166,6 +166,10 @@ class NetRunner:
     def _refresh_enabled(self) -> None:
         m = self.marking
         self._enabled = [j for j, col in enumerate(self._pre_cols) if all(m[i] >= w for i, w in col)]
+        self._marked = [i for i, n in enumerate(m) if n]
+        for i, n in enumerate(m):
+            if not n:
+                self.values[self._dwell_slot[i]] = 0.0
 
     def observe(self, state: Sequence[float], time: float) -> list[float]:
         """Load one state vector and the trial time into the value slots (steps 1 of the tick)."""
@@ -182,9 +186,9 @@ class NetRunner:
             except (ArithmeticError, ValueError):     # sqrt(-1), overflow: the value is undefined
                 v[slot] = math.nan
         v[self._time_slot] = time
-        entered = self._entered
-        for i, n in enumerate(self.marking):
-            v[self._dwell_slot[i]] = time - entered[i] if n else 0.0
+        entered, dslot = self._entered, self._dwell_slot
+        for i in self._marked:                       # an empty place's dwell is 0, set when it emptied
+            v[dslot[i]] = time - entered[i]
         for slot, ins in self._multi_dwell:
             v[slot] = min(v[s] for s in ins)
         self.time = time
@@ -252,25 +256,32 @@ class NetRunner:
         :attr:`outcome` is ``"success"`` or ``"failure"`` and the trial is over.
         """
         self.observe(state, time)
-        fired: list[str] = []
-        done: set[int] = set()
-        for _ in range(self.max_firings_per_tick):
-            if self.outcome is not None:
-                break
-            cands = [j for j in self.candidates() if j not in done]
-            if not cands:
-                break
-            j = self.choose(cands)
-            if j is None:
-                break
-            if len(cands) > 1:
-                ids = self.apn.transition_ids
-                self.choices.append(Choice(self.tick_index, ids[j], tuple(ids[c] for c in cands)))
-            self.fire(j)
-            done.add(j)
-            fired.append(self.apn.transition_ids[j])
+        if self.max_firings_per_tick == 1:           # the common case, kept lean for the 1 kHz path
+            fired = self._fire_one(self.candidates()) if self.outcome is None else []
+        else:
+            fired = []
+            for _ in range(self.max_firings_per_tick):
+                if self.outcome is not None:
+                    break
+                one = self._fire_one([j for j in self.candidates() if self.apn.transition_ids[j] not in fired])
+                if not one:
+                    break
+                fired += one
         self.tick_index += 1
         return fired
+
+    def _fire_one(self, cands: list[int]) -> list[str]:
+        """Choose among ``cands`` by λ and fire; the id fired, as a list (empty if none)."""
+        if not cands:
+            return []
+        j = self.choose(cands)
+        if j is None:
+            return []
+        ids = self.apn.transition_ids
+        if len(cands) > 1:
+            self.choices.append(Choice(self.tick_index, ids[j], tuple(ids[c] for c in cands)))
+        self.fire(j)
+        return [ids[j]]
 
     # -- views -----------------------------------------------------------------------------------
     def marking_dict(self) -> dict[str, int]:

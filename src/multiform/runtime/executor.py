@@ -150,9 +150,7 @@ class Executor:
             bad = False
             for law, getter, buf, outs in plan:
                 buf[:] = getter(values)
-                y = law.predict_one(buf)
-                for j, i in enumerate(outs):
-                    c = float(y[j])
+                for c, i in zip(law.predict_one(buf).tolist(), outs):
                     bad |= not math.isfinite(c)
                     cmd[i] = c
             if bad:                      # a law that cannot say what to do ends the trial, never the robot

@@ -100,7 +100,12 @@ class Saturator:
         if self._tlo is None:
             return tau
         # plain floats: on six values numpy's .any()/.clip dispatch costs more than the comparisons
-        excess = max(max(t - h, l - t) for t, l, h in zip(tau.tolist(), self._tlo_list, self._thi_list))
+        excess = 0.0
+        for t, lo, hi in zip(tau.tolist(), self._tlo_list, self._thi_list):
+            if t > hi:
+                excess = max(excess, t - hi)
+            elif t < lo:
+                excess = max(excess, lo - t)
         if excess > 0.0:
             self.log.add("joint torque", tick, excess)
             np.clip(tau, self._tlo, self._thi, out=tau)
