@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -43,7 +43,7 @@ Log = Callable[[str], None]
 class JobConfig:
     """Sizes of the main job (defaults: the README's `make demo`)."""
 
-    demos: int = 40
+    demos: int | None = None         # None: the task's DEMOS
     eval_trials: int = 200
     ablation_trials: int = 100
     practice_max_trials: int = 30
@@ -62,6 +62,8 @@ class Job:
         self.task = get_task(task) if isinstance(task, str) else task
         self.out = Path(out)
         self.cfg = config or JobConfig()
+        if self.cfg.demos is None:
+            self.cfg = replace(self.cfg, demos=int(getattr(self.task, "DEMOS", 40)))
         self.log = log
         self.progress = progress
         self.timings: dict[str, float] = {}

@@ -28,6 +28,7 @@ BASELINE_WAIT = 6.0                # s: the demo-only harness stops a trial hold
                                    # the mentor's flip), so the single law has time to finish a flip
 
 TASK = "nunchaku"
+DEMOS = 40                         # the main job's demonstrations
 DESCRIPTION = ("A hand on a fast 6-DoF base (MuJoCo) learns to flip a nunchaku — swing-up, release, the chain "
                "rolling over the back of the palm, regrasp of the other rod with a magnet palm — from a scripted "
                "mentor's demonstrations and labels, sensing the free rod only through the wrist load.")
