@@ -406,7 +406,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="the main job: record, train, practise with repair, evaluate, report")
     p.add_argument("task", choices=["pendulum", "nunchaku"])
     p.add_argument("--out", "-o", required=True, help="run folder")
-    p.add_argument("--demos", type=int, default=None, help="demonstrations (default: the task's, pendulum 80, nunchaku 40)")
+    p.add_argument("--demos", type=int, default=None, help="demonstrations (default: the task's DEMOS, 40)")
     p.add_argument("--eval-trials", type=int, default=200)
     p.add_argument("--ablation-trials", type=int, default=100)
     p.add_argument("--max-trials", type=int, default=30, help="practice trials per scenario at most")
