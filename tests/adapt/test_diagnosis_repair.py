@@ -122,6 +122,16 @@ def test_new_place_when_no_place_relates():
     assert dict(back.inputs) == {new_place: 1} and set(back.outputs) <= {"P1", "P2"}
 
 
+def test_one_lost_trial_is_not_enough_for_a_new_place():
+    apn = load_skill("pendulum")
+    tr, scores = _pushed(apn, belongs_to_p1=False)
+    d = diagnose(apn, tr[:1], scores, ("theta", "omega", "x"))
+    assert len(d.exits) == 1 and d.exits[0].best is None
+    assert repair(apn, d, FakeLearners()) is None
+    d = diagnose(apn, tr[:2], scores, ("theta", "omega", "x"))
+    assert repair(apn, d, FakeLearners()).revisions[0].operator == "add_place"
+
+
 def test_timeouts_are_not_disturbances():
     apn = load_skill("pendulum")
     tr = strict_failures(apn)

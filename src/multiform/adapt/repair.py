@@ -154,13 +154,17 @@ def add_transition_back(apn: APN, d: Diagnosis, learners: Learners, min_exits: i
     return None
 
 
-def add_new_place(apn: APN, d: Diagnosis, learners: Learners) -> Repair | None:
-    """Operator 4."""
+def add_new_place(apn: APN, d: Diagnosis, learners: Learners, min_exits: int = 2) -> Repair | None:
+    """Operator 4. A new place grows the net for good, so it needs lost states from at least
+    ``min_exits`` failed trials: one stray trial once added a place whose way in then fired during
+    ordinary swing-ups (39.5 % against 80.5 % in the main job)."""
     lost = [e for e in d.exits if e.best is None]
     if not lost:
         return None
     by_place = Counter(e.place for e in lost)
     src, n = by_place.most_common(1)[0]
+    if n < min_exits:
+        return None
     examples = [e for e in lost if e.place == src]
     nearest = Counter(max((p for p in e.scores if p != src), key=lambda p: e.scores[p], default=None)
                       for e in examples).most_common(1)[0][0]
