@@ -117,6 +117,10 @@ class NetRunner:
         own = list(self._guards)
         for j, t in enumerate(apn.transitions):
             if t.condition.unless:
+                unknown = [u for u in t.condition.unless if u not in apn.transition_ids]
+                if unknown:
+                    raise InvalidInput(f"condition yields to unknown transition(s) {', '.join(unknown)}",
+                                       element=f"transitions.{t.id}.condition.unless")
                 others = [own[apn.transition_ids.index(u)] for u in t.condition.unless]
                 self._guards[j] = _yielding(own[j], others)
         self._n_slots = n_slots
