@@ -16,6 +16,7 @@ from multiform.demos.labelling import read_sources, segments_to_label
 from multiform.demos.record import record_many
 from multiform.learn.labels import LabelStore
 from multiform.learn.training import fit_judge, mentor_records
+from multiform.learn.views import MIRROR_SUFFIX
 from multiform.model import SkillModel
 from multiform.runtime.executor import Executor
 from multiform.tasks import pendulum as task
@@ -99,10 +100,12 @@ def test_refit_follows_the_new_labels(work):
                  "--script", "kfkfksks", "--no-show", "--refit"]) == 0
     judge = SkillModel(model).judges()["P2"]
     assert list(judge.predict([s.segment for s in segs])) == [False, False, True, True]
-    assert sorted(judge.keys_) == sorted((s.source, s.start, s.end) for s in segs)
+    real = sorted((s.source, s.start, s.end) for s in segs)
+    assert sorted(judge.keys_) == sorted(real + [(src + MIRROR_SUFFIX, a, b) for src, a, b in real])  # + mirror images
     assert (model / "judges" / "P1.npz").read_bytes() == p1_before      # no new P1 labels, P1 untouched
     info = SkillModel(model).manifest["training"]["judges"]["P2"]
     assert info["revised_by"] == "bob" and info["segments"] == 4 and info["success_labels"] == 2
+    assert info["mirror_images"] == 4
 
 
 class Pump:
@@ -135,7 +138,9 @@ def test_labels_a_practice_trace_and_revises_with_it(work, capsys):
     assert (r["source"], r["place"], r["success"], r["labeller"]) == ("a_strict_7", "P1", False, "carol")
     assert r["end"] - r["start"] > 1000                                    # the whole stay in "swung up"
     judge = SkillModel(model).judges()["P1"]
-    assert ("a_strict_7", r["start"], r["end"]) in judge.keys_ and len(judge.keys_) == 5   # 4 demos kept + the trial
+    assert ("a_strict_7", r["start"], r["end"]) in judge.keys_
+    assert ("a_strict_7" + MIRROR_SUFFIX, r["start"], r["end"]) in judge.keys_
+    assert len(judge.keys_) == 10                    # 4 demos kept + the trial, each with its mirror image
     assert not judge.y_[judge.keys_.index(("a_strict_7", r["start"], r["end"]))]
 
 

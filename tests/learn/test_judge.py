@@ -190,3 +190,16 @@ def test_a_failed_save_leaves_the_old_file(judges, tmp_path, monkeypatch):
     assert [p.name for p in tmp_path.iterdir()] == ["judge_P1.npz"]     # no temporary left behind
     monkeypatch.undo()
     assert Judge.load(path, place="P1").best_kernel_ == judges["P1"].best_kernel_
+
+
+def test_grouped_folds_keep_a_segment_and_its_mirror_image_together():
+    """Exact twins split across folds let a memorising SVM score perfectly on noise; grouped they cannot."""
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(40, 3))
+    y = rng.random(40) < 0.5
+    X2, y2, groups = np.r_[X, X], np.r_[y, y], list(range(40)) * 2
+    grids = {"rbf": {"C": [1000.0], "gamma": [300.0]}}
+    leaky = KernelPoolClassifier(kernels=("rbf",), grids=grids).fit(X2, y2)
+    fair = KernelPoolClassifier(kernels=("rbf",), grids=grids, cv_repeats=3).fit(X2, y2, groups)
+    assert leaky.best_score_ > 0.8                  # a twin sits in the training folds 80 % of the time
+    assert fair.best_score_ < 0.7

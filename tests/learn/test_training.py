@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from multiform.demos.record import record_many
-from multiform.learn.training import LawSettings, fit_law, fit_regions, region_floor
-from multiform.learn.views import law_data, stays, success_mask, value_matrix
+from multiform.learn.labels import LabelStore
+from multiform.learn.training import LawSettings, fit_judge, fit_law, fit_regions, mentor_records, region_floor
+from multiform.learn.views import MIRROR_SUFFIX, law_data, mirror_episode, stays, success_mask, value_matrix
 from multiform.petri.skillfile import load_skill
 from multiform.tasks import pendulum as task
 
@@ -58,3 +61,38 @@ def test_region_floor_keeps_the_mentors_catches_inside(demos):
                 assert not back.holds(V[s:e]).any()
     fallen = np.array([[0.9, 4.0, 0.0], [-1.2, -3.0, 0.1]])      # a pushed pendulum falling
     assert back.holds(fallen).all()
+
+
+def test_mirror_image_of_a_demo(demos):
+    apn, eps = demos
+    ep = eps[0]
+    m = mirror_episode(apn, ep)
+    names = ["theta", "omega", "x", "xdot", "s", "c"]
+    V, M = value_matrix(apn, ep, names), value_matrix(apn, m, names)
+    np.testing.assert_allclose(M[:, :5], -V[:, :5], atol=1e-12)      # s = sin(theta) follows the state
+    np.testing.assert_allclose(M[:, 5], V[:, 5])
+    np.testing.assert_allclose(m.actions, -ep.actions)
+    assert (m.transitions == ep.transitions).all() and m.labels == ep.labels
+    with pytest.raises(ValueError, match="no mirror"):
+        mirror_episode(replace(apn, mirror={}), ep)
+
+
+def test_judges_learn_from_mirror_images_but_are_tested_on_real_segments(demos):
+    apn, eps = demos
+    store = LabelStore()
+    store.add_many(mentor_records(apn, eps))
+    judge, info = fit_judge(apn, eps, store, "P1", heldout=0.25)
+    plain, plain_info = fit_judge(apn, eps, store, "P1", heldout=0.25, mirror=False)
+    assert info["mirror_images"] == info["segments"] == plain_info["segments"] == len(plain.y_)
+    assert len(judge.y_) == 2 * len(plain.y_)
+    assert info["heldout_segments"] == plain_info["heldout_segments"]
+    mirrored = [k for k in judge.keys_ if k[0].endswith(MIRROR_SUFFIX)]
+    assert len(mirrored) == len(plain.y_)
+    rows = {k: i for i, k in enumerate(judge.keys_)}
+    names = judge.feature_names_
+    for src, a, b in mirrored[:5]:
+        orig, img = judge.X_[rows[(src[: -len(MIRROR_SUFFIX)], a, b)]], judge.X_[rows[(src, a, b)]]
+        for v in ("theta", "omega", "x"):
+            assert img[names.index(f"{v}.end")] == pytest.approx(-orig[names.index(f"{v}.end")])
+            assert img[names.index(f"{v}.max")] == pytest.approx(-orig[names.index(f"{v}.min")])
+        assert img[names.index("duration")] == orig[names.index("duration")]

@@ -45,7 +45,7 @@ from ..learn.features import Segment
 from ..learn.judge import Judge
 from ..learn.labels import ROBOT, LabelRecord, LabelStore, is_mentor, now
 from ..learn.training import demo_source, judged_places
-from ..learn.views import stays, value_matrix
+from ..learn.views import MIRROR_SUFFIX, mirror_episode, stays, value_matrix
 from ..model import SkillModel
 from ..petri.net import APN
 from ..runtime.trace import Trace
@@ -434,7 +434,8 @@ def refit_judges(model: SkillModel, places: Sequence[str], episodes: Mapping[str
     """Revise the judges of ``places`` with the store's effective mentor labels whose segments can
     be cut from ``episodes`` or the model's demonstrations; saves them and notes them in the manifest.
 
-    A place without a saved judge gets a new one fitted on those labels.
+    A place without a saved judge gets a new one fitted on those labels. If the skill declares a
+    mirror symmetry, every label also teaches its segment's mirror image (as in the first fit).
     """
     apn = model.apn
     judged = judged_places(apn)
@@ -456,20 +457,23 @@ def refit_judges(model: SkillModel, places: Sequence[str], episodes: Mapping[str
             if ep is None or r.end > ep.num_samples:
                 unknown += 1
                 continue
-            if r.source not in cache:
-                cache[r.source] = value_matrix(apn, ep, variables)
-            segs.append(Segment(cache[r.source][r.start:r.end], variables, ep.dt, r.source, r.start, r.end, place))
-            y.append(r.success)
+            for src in (r.source, r.source + MIRROR_SUFFIX) if apn.mirror else (r.source,):
+                if src not in cache:
+                    cache[src] = value_matrix(apn, mirror_episode(apn, ep) if src != r.source else ep, variables)
+                segs.append(Segment(cache[src][r.start:r.end], variables, ep.dt, src, r.start, r.end, place))
+                y.append(r.success)
         old = saved.get(place)
         judge = old.revise(segs, y) if old is not None else \
             Judge(place=place, variables=variables, random_state=seed).fit(segs, y)
         model.save_judge(place, judge)
         best = judge.cv_scores_.get(judge.best_kernel_, {})
-        info[place] = {"segments": int(len(judge.y_)), "success_labels": int(judge.y_.sum()),
+        real = np.array([not k[0].endswith(MIRROR_SUFFIX) for k in judge.keys_], dtype=bool)
+        info[place] = {"segments": int(real.sum()), "success_labels": int(judge.y_[real].sum()),
+                       "mirror_images": int((~real).sum()),
                        "kernel": judge.best_kernel_, "cv_score": best.get("score") if isinstance(best, dict) else best,
                        "cv_scores": {k: (v.get("score") if isinstance(v, dict) else v)
                                      for k, v in judge.cv_scores_.items()},
-                       "revised": now(), "revised_by": labeller, "labels_used": len(y),
+                       "revised": now(), "revised_by": labeller, "labels_used": sum(not sg.source.endswith(MIRROR_SUFFIX) for sg in segs),
                        "labels_not_found": unknown}
     judges_info = dict(model.manifest.get("training", {}).get("judges", {}))
     judges_info.update(info)

@@ -35,6 +35,7 @@ from .features import STATS, EpisodeLike, Segment, as_str_list, check_names, fea
     segment_from_episode
 from .kernel_pool import KernelPoolClassifier
 from .labels import LabelRecord
+from .views import base_source
 
 KIND = "judge"
 VERSION = 1
@@ -67,12 +68,13 @@ class Judge(BaseEstimator):
                  kernels: Sequence[str] = ("rbf", "poly", "linear", "sigmoid"),
                  grids: Mapping[str, Mapping[str, Sequence[Any]]] | None = None, cv: int = 5,
                  scoring: str = "balanced_accuracy", feature_sets: Mapping[str, Sequence[str]] | None = None,
-                 random_state: int = 0):
+                 cv_repeats: int = 3, random_state: int = 0):
         self.place = place
         self.variables = variables
         self.kernels = kernels
         self.grids = grids
         self.cv = cv
+        self.cv_repeats = cv_repeats
         self.scoring = scoring
         self.feature_sets = feature_sets
         self.random_state = random_state
@@ -100,8 +102,12 @@ class Judge(BaseEstimator):
         if unknown:
             raise ValueError(f"unknown statistic(s) {unknown}; known: {', '.join(STATS)}")
         subsets = {name: subset_columns(self.variables, stats) for name, stats in sets.items()}
-        self.pool_ = KernelPoolClassifier(kernels=self.kernels, grids=self.grids, cv=self.cv, scoring=self.scoring,
-                                          subsets=subsets, random_state=self.random_state).fit(X, y)
+        groups = None
+        if any(k[0] != base_source(k[0]) for k in keys):              # a mirror image stays with its segment
+            groups = [(base_source(k[0]), k[1], k[2]) for k in keys]
+        self.pool_ = KernelPoolClassifier(kernels=self.kernels, grids=self.grids, cv=self.cv, cv_repeats=self.cv_repeats,
+                                          scoring=self.scoring,
+                                          subsets=subsets, random_state=self.random_state).fit(X, y, groups)
         return self
 
     def revise(self, segments: Sequence[Segment], y: Sequence[bool]) -> Judge:
@@ -182,7 +188,8 @@ class Judge(BaseEstimator):
         arrays, pool_meta = self.pool_.to_arrays(_PREFIX)
         arrays = {**arrays, "train_X": self.X_, "train_y": self.y_.astype(np.uint8)}
         meta = {"place": self.place, "variables": list(self.variables), "feature_names": self.feature_names_,
-                "kernels": list(self.kernels), "cv": self.cv, "scoring": self.scoring,
+                "kernels": list(self.kernels), "cv": self.cv, "cv_repeats": self.cv_repeats,
+                "scoring": self.scoring,
                 "feature_sets": {k: list(v) for k, v in (self.feature_sets or FEATURE_SETS).items()},
                 "random_state": self.random_state, "train_keys": [list(k) for k in self.keys_], "pool": pool_meta}
         save_npz(path, arrays, meta, KIND, VERSION)
@@ -216,7 +223,8 @@ class Judge(BaseEstimator):
                                file=f, element="pool")
         try:
             j = cls(place=str(meta.get("place", "")), variables=tuple(saved_vars), kernels=tuple(meta["kernels"]),
-                    cv=int(meta["cv"]), scoring=str(meta["scoring"]), random_state=int(meta["random_state"]),
+                    cv=int(meta["cv"]), cv_repeats=int(meta.get("cv_repeats", 1)), scoring=str(meta["scoring"]),
+                    random_state=int(meta["random_state"]),
                     feature_sets={str(k): tuple(v) for k, v in meta["feature_sets"].items()})
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise InvalidInput(f"judge settings incomplete ({exc})", file=f, element="meta") from None

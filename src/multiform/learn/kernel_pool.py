@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.metrics import accuracy_score, balanced_accuracy_score
-from sklearn.model_selection import ParameterGrid, StratifiedKFold
+from sklearn.model_selection import ParameterGrid, StratifiedGroupKFold, StratifiedKFold
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 
@@ -128,17 +128,20 @@ class KernelPoolClassifier(ClassifierMixin, BaseEstimator):
     def __init__(self, kernels: Sequence[str] = ("rbf", "poly", "linear", "sigmoid"),
                  grids: Mapping[str, Mapping[str, Sequence[Any]]] | None = None, cv: int = 5,
                  scoring: str = "balanced_accuracy", class_weight: Any = "balanced",
-                 subsets: Mapping[str, Sequence[int]] | None = None, random_state: int = 0):
+                 subsets: Mapping[str, Sequence[int]] | None = None, cv_repeats: int = 1, random_state: int = 0):
         self.kernels = kernels
         self.grids = grids
         self.cv = cv
+        self.cv_repeats = cv_repeats
         self.scoring = scoring
         self.class_weight = class_weight
         self.subsets = subsets
         self.random_state = random_state
 
     # -- fitting ------------------------------------------------------------------------------------
-    def fit(self, X: np.ndarray, y: np.ndarray) -> KernelPoolClassifier:
+    def fit(self, X: np.ndarray, y: np.ndarray, groups: Sequence[Any] | None = None) -> KernelPoolClassifier:
+        """Search the pool by cross-validation and refit the best on all rows. Rows sharing a group
+        (e.g. a segment and its mirror image) always fall in the same fold."""
         X = np.asarray(X, dtype=np.float64)
         y = np.asarray(y).astype(bool)
         if X.ndim != 2 or len(X) != len(y):
@@ -193,7 +196,7 @@ class KernelPoolClassifier(ClassifierMixin, BaseEstimator):
             self.decision_ = self._fit_one(kernel, params, X[:, self.columns_], y)
             f = np.asarray(self.decision_.decision(X[:, self.columns_]))
         else:
-            f = self._search(X, y, min_count, subsets)
+            f = self._search(X, y, min_count, subsets, groups)
             self.decision_ = self._fit_one(self.best_kernel_, self.best_params_, X[:, self.columns_], y)
             self.calibration_ = "cross-validated"
             inside = np.asarray(self.decision_.decision(X[:, self.columns_]))
@@ -212,11 +215,22 @@ class KernelPoolClassifier(ClassifierMixin, BaseEstimator):
             svc = _svc(kernel, params, X.shape[1], self.class_weight).fit(scaler.transform(X), y)
         return FastDecision.from_sklearn(svc, scaler)
 
-    def _search(self, X: np.ndarray, y: np.ndarray, min_count: int, subsets: Mapping[str, list[int]]) -> np.ndarray:
+    def _search(self, X: np.ndarray, y: np.ndarray, min_count: int, subsets: Mapping[str, list[int]],
+                groups: Sequence[Any] | None = None) -> np.ndarray:
         """Every (subset, kernel, params) on the same folds; sets the best_* attributes and returns
         the winner's out-of-fold decision values (for Platt scaling)."""
         self.n_splits_ = int(max(2, min(self.cv, min_count)))
-        folds = list(StratifiedKFold(self.n_splits_, shuffle=True, random_state=self.random_state).split(X, y))
+        repeats = max(1, int(self.cv_repeats))
+        if groups is None:
+            folds = [f for r in range(repeats) for f in StratifiedKFold(
+                self.n_splits_, shuffle=True, random_state=self.random_state + r).split(X, y)]
+        else:
+            if len(groups) != len(y):
+                raise ValueError(f"{len(groups)} groups for {len(y)} rows")
+            codes = np.unique(np.asarray([str(g) for g in groups]), return_inverse=True)[1]
+            self.n_splits_ = int(max(2, min(self.n_splits_, len(np.unique(codes[~y])), len(np.unique(codes[y])))))
+            folds = [f for r in range(repeats) for f in StratifiedGroupKFold(
+                self.n_splits_, shuffle=True, random_state=self.random_state + r).split(X, y, codes)]
         scorer = SCORERS[self.scoring]
         grids = {**DEFAULT_GRIDS, **(self.grids or {})}
         cands = {k: list(ParameterGrid(dict(grids[k]))) for k in self.kernels}
@@ -238,8 +252,9 @@ class KernelPoolClassifier(ClassifierMixin, BaseEstimator):
                         except ValueError:
                             scores.append(0.0)
                             continue
-                        oof[te] = FastDecision.from_sklearn(m).decision(Xte)
-                        scores.append(scorer(y[te], oof[te] > 0))
+                        f = FastDecision.from_sklearn(m).decision(Xte)
+                        oof[te] += f / repeats
+                        scores.append(scorer(y[te], f > 0))
                     mean, std = float(np.mean(scores)), float(np.std(scores))
                     sbest = max(sbest, mean)
                     # ties: steadier, fewer features, then larger C (with every multiplier at its

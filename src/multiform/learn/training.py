@@ -26,7 +26,8 @@ from .judge import Judge
 from .labels import LabelRecord, LabelStore, records_from_episode
 from .region import PlaceRegions
 from .condition import LearnedCondition, switch_windows, window_hits
-from .views import law_data, place_episode, place_samples, switch_data, value_matrix
+from .views import (MIRROR_SUFFIX, base_source, law_data, mirror_episode, place_episode, place_samples, switch_data,
+                    value_matrix)
 
 Progress = Callable[[str], None]
 
@@ -111,43 +112,53 @@ def judged_places(apn: APN) -> dict[str, tuple[str, ...]]:
     return {p.id: p.judge for p in apn.places if p.judge and not p.final}
 
 
-def demo_segments(apn: APN, episodes: Sequence[Episode], records: Sequence[LabelRecord], variables: Sequence[str]
-                  ) -> tuple[list[Segment], np.ndarray]:
-    """The segments label records point at (demonstrations only), in the skill's variables."""
-    cache: dict[int, np.ndarray] = {}
+def demo_segments(apn: APN, episodes: Sequence[Episode], records: Sequence[LabelRecord], variables: Sequence[str],
+                  mirror: bool = False) -> tuple[list[Segment], np.ndarray]:
+    """The segments label records point at (demonstrations only), in the skill's variables. With
+    ``mirror`` and a skill that declares a mirror symmetry, each labelled segment's mirror image follows
+    it with the same label (source ``demo_<i>~mirror``)."""
+    mirror = mirror and bool(apn.mirror)
+    cache: dict[tuple[int, bool], np.ndarray] = {}
     segs, y = [], []
     for r in records:
         if not r.source.startswith("demo_"):
             continue
         i = int(r.source.split("_")[1])
-        if i not in cache:
-            cache[i] = value_matrix(apn, episodes[i], variables)
-        segs.append(Segment(cache[i][r.start:r.end], tuple(variables), episodes[i].dt, r.source, r.start, r.end,
-                            r.transition))
-        y.append(r.success)
+        for m in (False, True) if mirror else (False,):
+            if (i, m) not in cache:
+                ep = mirror_episode(apn, episodes[i]) if m else episodes[i]
+                cache[i, m] = value_matrix(apn, ep, variables)
+            segs.append(Segment(cache[i, m][r.start:r.end], tuple(variables), episodes[i].dt,
+                                r.source + MIRROR_SUFFIX if m else r.source, r.start, r.end, r.transition))
+            y.append(r.success)
     return segs, np.asarray(y, dtype=bool)
 
 
 def fit_judge(apn: APN, episodes: Sequence[Episode], store: LabelStore, place: str, seed: int = 0,
-              heldout: float = 0.25) -> tuple[Judge, dict[str, Any]]:
-    """Fit the judge of ``place`` on the store's effective mentor labels; held-out accuracy on a
-    split by demonstration."""
+              heldout: float = 0.25, mirror: bool = True) -> tuple[Judge, dict[str, Any]]:
+    """Fit the judge of ``place`` on the store's effective mentor labels (and, if the skill declares a
+    mirror symmetry and ``mirror`` is set, on their mirror images too); held-out accuracy on a split by
+    demonstration, tested on the held-out demonstrations' own segments (a mirror image follows its
+    demonstration into the same side of the split)."""
     variables = judged_places(apn)[place]
     records = [r for r in store.effective(place=place) if r.source.startswith("demo_")]
-    segs, y = demo_segments(apn, episodes, records, variables)
-    summary: dict[str, Any] = {"segments": int(len(y)), "success_labels": int(y.sum())}
+    segs, y = demo_segments(apn, episodes, records, variables, mirror=mirror)
+    mirrored = np.array([s.source.endswith(MIRROR_SUFFIX) for s in segs], dtype=bool)
+    summary: dict[str, Any] = {"segments": int((~mirrored).sum()), "success_labels": int(y[~mirrored].sum()),
+                               "mirror_images": int(mirrored.sum())}
     if len(y) < 4:
         raise ValueError(f"judge of {place}: only {len(y)} labelled segments")
     if heldout > 0 and len(episodes) >= 4:
         tr_d, te_d = split_episodes(len(episodes), heldout, seed)
         te_src = {demo_source(int(i)) for i in te_d}
-        te = np.array([s.source in te_src for s in segs])
+        te = np.array([base_source(s.source) in te_src for s in segs])
         if te.any() and (~te).any() and len(set(y[~te])) == 2:
             probe = Judge(place=place, variables=variables, random_state=seed).fit(
                 [s for s, t in zip(segs, te) if not t], y[~te])
-            pred = probe.predict([s for s, t in zip(segs, te) if t])
-            summary["heldout_accuracy"] = float(np.mean(pred == y[te]))
-            summary["heldout_segments"] = int(te.sum())
+            test = te & ~mirrored
+            pred = probe.predict([s for s, t in zip(segs, test) if t])
+            summary["heldout_accuracy"] = float(np.mean(pred == y[test]))
+            summary["heldout_segments"] = int(test.sum())
     judge = Judge(place=place, variables=variables, random_state=seed).fit(segs, y)
     summary["kernel"] = judge.best_kernel_
     best = judge.cv_scores_.get(judge.best_kernel_, {})

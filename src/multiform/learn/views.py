@@ -10,7 +10,7 @@ while each place held the token.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -65,6 +65,24 @@ def value_matrix(apn: APN, ep: Episode, names: Sequence[str]) -> np.ndarray:
     if missing:
         raise KeyError(f"episode has no value for {', '.join(missing)}")
     return np.stack([cols[x] for x in names], axis=1) if names else np.zeros((n, 0))
+
+
+MIRROR_SUFFIX = "~mirror"
+
+
+def mirror_episode(apn: APN, ep: Episode) -> Episode:
+    """``ep`` seen in the skill's declared mirror (``apn.mirror``): the named observations and commands
+    change sign; tags, labels and timing stay. Raises ``ValueError`` if the skill declares none."""
+    if not apn.mirror:
+        raise ValueError(f"skill {apn.name!r} declares no mirror symmetry")
+    obs_sign = np.array([apn.mirror.get(v, 1) for v in ep.observation_names], dtype=float)
+    act_sign = np.array([apn.mirror.get(c, 1) for c in ep.command_names], dtype=float)
+    return replace(ep, obs=ep.obs * obs_sign, actions=ep.actions * act_sign if ep.actions.size else ep.actions)
+
+
+def base_source(source: str) -> str:
+    """The episode a (possibly mirrored) segment source comes from: ``demo_3~mirror`` → ``demo_3``."""
+    return source[: -len(MIRROR_SUFFIX)] if source.endswith(MIRROR_SUFFIX) else source
 
 
 def success_mask(ep: Episode) -> np.ndarray:

@@ -164,6 +164,8 @@ class APN:
     control_rate: float = 1000.0
     max_duration: float = 60.0
     safety: Mapping[str, Any] = field(default_factory=dict)
+    mirror: Mapping[str, int] = field(default_factory=dict)   # the task's mirror symmetry: sign of each
+    # state variable and command in the mirror image (unnamed ones keep their sign); empty = none declared
 
     # -- lookup -------------------------------------------------------------------------------
     @cached_property

@@ -23,7 +23,8 @@ from .net import APN, FINAL_KINDS, Condition, Law, Place, Transition
 
 IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 TOP_KEYS = {"skill", "description", "env", "control_rate", "max_duration", "variables", "derived",
-            "commands", "laws", "places", "initial_marking", "transitions", "arcs", "safety"}
+            "commands", "laws", "places", "initial_marking", "transitions", "arcs", "safety",
+            "mirror"}
 PLACE_KEYS = {"label", "final", "judge"}
 TRANSITION_KEYS = {"label", "in", "out", "law", "lambda", "condition"}
 LAW_KEYS = {"inputs", "outputs", "mean", "description"}
@@ -161,6 +162,7 @@ def build_apn(data: Mapping[str, Any], file: str, problems: list[Problem]) -> AP
 
     laws = _laws(data.get("laws"), allowed, tuple(commands), bad)
     safety = parse_safety(data.get("safety"), set(variables) | set(derived), tuple(commands), bad)
+    mirror = parse_mirror(data.get("mirror"), set(variables), tuple(commands), bad)
     transitions = parse_transitions(transitions_raw, place_ids, transition_ids, allowed, laws, bad)
     transitions = _extra_arcs(data.get("arcs"), transitions, place_ids, bad)
 
@@ -185,10 +187,33 @@ def build_apn(data: Mapping[str, Any], file: str, problems: list[Problem]) -> AP
     apn = APN(name=name, places=tuple(places), transitions=tuple(transitions), initial_marking=initial,
               variables=variables, derived=derived, commands=tuple(commands), laws=laws,
               description=str(data.get("description", "") or ""), env=str(data.get("env", "") or ""),
-              control_rate=control_rate, max_duration=max_duration, safety=safety)
+              control_rate=control_rate, max_duration=max_duration, safety=safety, mirror=mirror)
     if initial and places and not problems:
         _check_final_reachable(apn, bad)
     return apn
+
+
+def parse_mirror(raw: Any, variables: set[str], commands: tuple[str, ...], bad) -> dict[str, int]:
+    """The ``mirror`` section: the sign (+1 or -1) of each state variable and command in the task's
+    mirror image (a swing to the left mirrors a swing to the right). Learners may then learn from
+    every demonstration's mirror image too; derived variables follow from the mirrored state."""
+    if raw is None:
+        return {}
+    if not isinstance(raw, Mapping):
+        bad("mirror", "must map state variables and commands to their sign in the mirror image (+1 or -1)")
+        return {}
+    out: dict[str, int] = {}
+    for name, sign in raw.items():
+        el = f"mirror.{name}"
+        if name not in variables and name not in commands:
+            bad(el, "not a state variable or command of the skill (derived variables follow from the state)")
+        elif _is_int(sign) and int(sign) in (-1, 1):
+            out[str(name)] = int(sign)
+        else:
+            bad(el, f"sign must be +1 or -1, got {sign!r}")
+    if out and all(v == 1 for v in out.values()):
+        bad("mirror", "every sign is +1: the mirror image would be the task itself")
+    return out
 
 
 def parse_safety(raw: Any, variables: set[str], commands: tuple[str, ...], bad) -> dict[str, Any]:
@@ -542,6 +567,8 @@ def skill_to_data(apn: APN) -> dict[str, Any]:
         out["laws"] = {k: law.to_data(apn.commands) for k, law in apn.laws.items()}
     if apn.safety:
         out["safety"] = {k: v for k, v in apn.safety.items() if v}
+    if apn.mirror:
+        out["mirror"] = dict(apn.mirror)
     out["places"] = {p.id: p.to_data() for p in apn.places}
     out["initial_marking"] = dict(apn.initial_marking)
     out["transitions"] = {t.id: t.to_data() for t in apn.transitions}
