@@ -68,7 +68,7 @@ class Judge(BaseEstimator):
                  kernels: Sequence[str] = ("rbf", "poly", "linear", "sigmoid"),
                  grids: Mapping[str, Mapping[str, Sequence[Any]]] | None = None, cv: int = 5,
                  scoring: str = "balanced_accuracy", feature_sets: Mapping[str, Sequence[str]] | None = None,
-                 cv_repeats: int = 3, random_state: int = 0):
+                 cv_repeats: int = 1, random_state: int = 0):
         self.place = place
         self.variables = variables
         self.kernels = kernels

@@ -117,6 +117,8 @@ class KernelPoolClassifier(ClassifierMixin, BaseEstimator):
 
     ``y`` is boolean (True = success). ``subsets`` optionally names column subsets of ``X`` to try
     (e.g. a judge's "end state only" and "all statistics"); None tries all columns only.
+    ``cv_repeats`` repeats the cross-validation on reshuffled folds (a steadier choice on few labels,
+    at that many times the cost); ``fit(X, y, groups)`` keeps rows of one group in one fold.
     After :meth:`fit`: ``best_kernel_``, ``best_params_`` (gamma as the multiple of 1 / n_features),
     ``best_subset_`` and ``columns_`` (the columns used), ``best_score_``, ``cv_scores_`` (per kernel:
     best mean score over its grid and the subsets, its std over folds, its params and subset, number
