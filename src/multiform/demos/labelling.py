@@ -44,8 +44,8 @@ from ..errors import InvalidInput
 from ..learn.features import Segment
 from ..learn.judge import Judge
 from ..learn.labels import ROBOT, LabelRecord, LabelStore, is_mentor, now
-from ..learn.training import demo_source, judged_places
-from ..learn.views import MIRROR_SUFFIX, mirror_episode, stays, value_matrix
+from ..learn.training import demo_source, judged_places, record_segments
+from ..learn.views import is_mirror, stays, value_matrix
 from ..model import SkillModel
 from ..petri.net import APN
 from ..runtime.trace import Trace
@@ -451,29 +451,28 @@ def refit_judges(model: SkillModel, places: Sequence[str], episodes: Mapping[str
     for place in places:
         variables = judged[place]
         cache: dict[str, np.ndarray] = {}
-        segs, y, unknown = [], [], 0
+        segs, y, unknown, used = [], [], 0, 0
         for r in store.effective(place=place):
             ep = known.get(r.source)
             if ep is None or r.end > ep.num_samples:
                 unknown += 1
                 continue
-            for src in (r.source, r.source + MIRROR_SUFFIX) if apn.mirror else (r.source,):
-                if src not in cache:
-                    cache[src] = value_matrix(apn, mirror_episode(apn, ep) if src != r.source else ep, variables)
-                segs.append(Segment(cache[src][r.start:r.end], variables, ep.dt, src, r.start, r.end, place))
-                y.append(r.success)
+            cut = record_segments(apn, ep, r, variables, cache)
+            segs += cut
+            y += [r.success] * len(cut)
+            used += 1
         old = saved.get(place)
         judge = old.revise(segs, y) if old is not None else \
             Judge(place=place, variables=variables, random_state=seed).fit(segs, y)
         model.save_judge(place, judge)
         best = judge.cv_scores_.get(judge.best_kernel_, {})
-        real = np.array([not k[0].endswith(MIRROR_SUFFIX) for k in judge.keys_], dtype=bool)
+        real = np.array([not is_mirror(k[0]) for k in judge.keys_], dtype=bool)
         info[place] = {"segments": int(real.sum()), "success_labels": int(judge.y_[real].sum()),
                        "mirror_images": int((~real).sum()),
                        "kernel": judge.best_kernel_, "cv_score": best.get("score") if isinstance(best, dict) else best,
                        "cv_scores": {k: (v.get("score") if isinstance(v, dict) else v)
                                      for k, v in judge.cv_scores_.items()},
-                       "revised": now(), "revised_by": labeller, "labels_used": sum(not sg.source.endswith(MIRROR_SUFFIX) for sg in segs),
+                       "revised": now(), "revised_by": labeller, "labels_used": used,
                        "labels_not_found": unknown}
     judges_info = dict(model.manifest.get("training", {}).get("judges", {}))
     judges_info.update(info)

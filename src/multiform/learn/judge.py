@@ -35,7 +35,7 @@ from .features import STATS, EpisodeLike, Segment, as_str_list, check_names, fea
     segment_from_episode
 from .kernel_pool import KernelPoolClassifier
 from .labels import LabelRecord
-from .views import base_source
+from .views import base_source, is_mirror
 
 KIND = "judge"
 VERSION = 1
@@ -103,11 +103,11 @@ class Judge(BaseEstimator):
             raise ValueError(f"unknown statistic(s) {unknown}; known: {', '.join(STATS)}")
         subsets = {name: subset_columns(self.variables, stats) for name, stats in sets.items()}
         groups = None
-        if any(k[0] != base_source(k[0]) for k in keys):              # a mirror image stays with its segment
+        if any(is_mirror(k[0]) for k in keys):                       # a mirror image stays with its segment
             groups = [(base_source(k[0]), k[1], k[2]) for k in keys]
-        self.pool_ = KernelPoolClassifier(kernels=self.kernels, grids=self.grids, cv=self.cv, cv_repeats=self.cv_repeats,
-                                          scoring=self.scoring,
-                                          subsets=subsets, random_state=self.random_state).fit(X, y, groups)
+        self.pool_ = KernelPoolClassifier(kernels=self.kernels, grids=self.grids, cv=self.cv,
+                                          cv_repeats=self.cv_repeats, scoring=self.scoring, subsets=subsets,
+                                          random_state=self.random_state).fit(X, y, groups)
         return self
 
     def revise(self, segments: Sequence[Segment], y: Sequence[bool]) -> Judge:

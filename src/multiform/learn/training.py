@@ -26,8 +26,8 @@ from .judge import Judge
 from .labels import LabelRecord, LabelStore, records_from_episode
 from .region import PlaceRegions
 from .condition import LearnedCondition, switch_windows, window_hits
-from .views import (MIRROR_SUFFIX, base_source, law_data, mirror_episode, place_episode, place_samples, switch_data,
-                    value_matrix)
+from .views import (MIRROR_SUFFIX, base_source, is_mirror, law_data, mirror_episode, place_episode, place_samples,
+                    switch_data, value_matrix)
 
 Progress = Callable[[str], None]
 
@@ -112,25 +112,32 @@ def judged_places(apn: APN) -> dict[str, tuple[str, ...]]:
     return {p.id: p.judge for p in apn.places if p.judge and not p.final}
 
 
+def record_segments(apn: APN, ep: Episode, record: LabelRecord, variables: Sequence[str],
+                    cache: dict[str, np.ndarray], mirror: bool = True) -> list[Segment]:
+    """The segment ``record`` points at in ``ep``, in ``variables``; with ``mirror`` and a skill that
+    declares a mirror symmetry, followed by its mirror image (source ``<source>~mirror``, same label).
+    ``cache`` keeps each (mirrored) episode's value matrix by source across calls."""
+    out = []
+    for src in (record.source, record.source + MIRROR_SUFFIX) if mirror and apn.mirror else (record.source,):
+        if src not in cache:
+            cache[src] = value_matrix(apn, mirror_episode(apn, ep) if is_mirror(src) else ep, variables)
+        out.append(Segment(cache[src][record.start:record.end], tuple(variables), ep.dt, src, record.start,
+                           record.end, record.transition))
+    return out
+
+
 def demo_segments(apn: APN, episodes: Sequence[Episode], records: Sequence[LabelRecord], variables: Sequence[str],
                   mirror: bool = False) -> tuple[list[Segment], np.ndarray]:
-    """The segments label records point at (demonstrations only), in the skill's variables. With
-    ``mirror`` and a skill that declares a mirror symmetry, each labelled segment's mirror image follows
-    it with the same label (source ``demo_<i>~mirror``)."""
-    mirror = mirror and bool(apn.mirror)
-    cache: dict[tuple[int, bool], np.ndarray] = {}
+    """The segments label records point at (demonstrations only), in the skill's variables, with
+    their mirror images if ``mirror`` (:func:`record_segments`)."""
+    cache: dict[str, np.ndarray] = {}
     segs, y = [], []
     for r in records:
         if not r.source.startswith("demo_"):
             continue
-        i = int(r.source.split("_")[1])
-        for m in (False, True) if mirror else (False,):
-            if (i, m) not in cache:
-                ep = mirror_episode(apn, episodes[i]) if m else episodes[i]
-                cache[i, m] = value_matrix(apn, ep, variables)
-            segs.append(Segment(cache[i, m][r.start:r.end], tuple(variables), episodes[i].dt,
-                                r.source + MIRROR_SUFFIX if m else r.source, r.start, r.end, r.transition))
-            y.append(r.success)
+        cut = record_segments(apn, episodes[int(r.source.split("_")[1])], r, variables, cache, mirror)
+        segs += cut
+        y += [r.success] * len(cut)
     return segs, np.asarray(y, dtype=bool)
 
 
@@ -143,7 +150,7 @@ def fit_judge(apn: APN, episodes: Sequence[Episode], store: LabelStore, place: s
     variables = judged_places(apn)[place]
     records = [r for r in store.effective(place=place) if r.source.startswith("demo_")]
     segs, y = demo_segments(apn, episodes, records, variables, mirror=mirror)
-    mirrored = np.array([s.source.endswith(MIRROR_SUFFIX) for s in segs], dtype=bool)
+    mirrored = np.array([is_mirror(s.source) for s in segs], dtype=bool)
     summary: dict[str, Any] = {"segments": int((~mirrored).sum()), "success_labels": int(y[~mirrored].sum()),
                                "mirror_images": int(mirrored.sum())}
     if len(y) < 4:
@@ -267,7 +274,8 @@ def fit_switch_condition(apn: APN, episodes: Sequence[Episode], transition: str,
     window, params, hit, exact, fp = (max(ok, key=lambda s: (s[2], s[3], -s[4], -s[0])) if ok
                                       else min(scores, key=lambda s: s[4]))
     d = data[window]
-    cond = LearnedCondition(input_names=tuple(names), random_state=seed, **params).fit_switches(d.positives, d.negatives)
+    cond = LearnedCondition(input_names=tuple(names), random_state=seed, **params).fit_switches(d.positives,
+                                                                                                d.negatives)
     info = {"variables": list(names), "params": params, "window": window, "moment": moment,
             "cv_hit_in_moment": round(hit, 4), "cv_hit_at_switches": round(exact, 4),
             "cv_holds_far_from_switches": round(fp, 4), "mentor_switches": int(len(d.switch_states)),

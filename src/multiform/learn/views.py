@@ -80,9 +80,14 @@ def mirror_episode(apn: APN, ep: Episode) -> Episode:
     return replace(ep, obs=ep.obs * obs_sign, actions=ep.actions * act_sign if ep.actions.size else ep.actions)
 
 
+def is_mirror(source: str) -> bool:
+    """Whether a segment source names a mirror image (``demo_3~mirror``)."""
+    return source.endswith(MIRROR_SUFFIX)
+
+
 def base_source(source: str) -> str:
     """The episode a (possibly mirrored) segment source comes from: ``demo_3~mirror`` → ``demo_3``."""
-    return source[: -len(MIRROR_SUFFIX)] if source.endswith(MIRROR_SUFFIX) else source
+    return source[: -len(MIRROR_SUFFIX)] if is_mirror(source) else source
 
 
 def success_mask(ep: Episode) -> np.ndarray:
