@@ -69,8 +69,8 @@ class Job:
         self.timings: dict[str, float] = {}
         self.metrics: dict[str, Any] = {}
 
-    def _bar(self, total: int, desc: str) -> tqdm:
-        return tqdm(total=total, desc=desc, unit="trial" if "demo" not in desc else "demo",
+    def _bar(self, total: int, desc: str, unit: str = "trial") -> tqdm:
+        return tqdm(total=total, desc=desc, unit=unit,
                     disable=not self.progress, leave=False, dynamic_ncols=True)
 
     def _stage(self, name: str, fn: Callable[[], Any]) -> Any:
@@ -84,15 +84,16 @@ class Job:
     # -- 1. demonstrations -----------------------------------------------------------------------
     def record(self) -> Path:
         path = self.out / "demos.h5"
-        if path.exists():
-            try:
-                if len(read_dataset(path)) == self.cfg.demos:
-                    self.log(f"  reusing {path}")
-                    return path
-            except InvalidInput:
-                pass
         seeds = [self.cfg.seed * 100_000 + i for i in range(self.cfg.demos)]
-        with self._bar(len(seeds), "recording demos") as bar:
+        if path.exists():
+            try:        # reused only if it is the set this job would record (same seeds and start options)
+                old = [(e.seed, e.reset_options) for e in read_dataset(path)]
+            except InvalidInput:
+                old = []
+            if old == [(s, self.task.demo_options(s)) for s in seeds]:
+                self.log(f"  reusing {path}")
+                return path
+        with self._bar(len(seeds), "recording demos", unit="demo") as bar:
             eps = record_many(self.task.TASK, seeds, self.task.DEMO_ENV_KWARGS, workers=self.cfg.workers,
                               progress=lambda i, n: bar.update(1))
         write_dataset(path, eps, self.task.SKILL, self.task.ENV_ID, self.task.DEMO_ENV_KWARGS,

@@ -64,6 +64,22 @@ def test_home_posture_and_default_start(env):
     assert obs[IDX["x"]] == pytest.approx(0.0, abs=1e-8)
 
 
+@pytest.mark.parametrize("x0", [-0.33, 0.2, 0.35])
+def test_hand_starts_off_centre_at_rest_and_stays_under_the_servo(env, x0):
+    obs, _ = env.reset(seed=3, options={"x0": x0, "theta0": 0.4})
+    assert obs[IDX["x"]] == pytest.approx(x0, abs=1e-6)
+    np.testing.assert_allclose(obs[IDX["ee_y"]:IDX["ee_z"] + 1], env.workspace_centre[1:], atol=1e-6)
+    np.testing.assert_allclose(obs[IDX["ee_rx"]:IDX["ee_rz"] + 1], 0.0, atol=1e-6)   # home orientation
+    np.testing.assert_allclose(obs[IDX["qd1"]:IDX["qd6"] + 1], 0.0)                   # at rest
+    assert obs[IDX["theta"]] == pytest.approx(0.4, abs=1e-9)
+    for _ in range(300):
+        obs, *_ = env.step(np.array([0.0]))
+    assert obs[IDX["x"]] == pytest.approx(x0, abs=2e-3)
+    for bad in (0.5, float("nan")):
+        with pytest.raises(ValueError, match="x0"):
+            env.reset(seed=0, options={"x0": bad})
+
+
 def test_theta_convention_tip_towards_plus_x(env):
     for th in (0.3, -0.7, 2.0):
         obs, _ = env.reset(seed=0, options={"theta0": th, "omega0": 0.0})

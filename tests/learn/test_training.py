@@ -17,8 +17,10 @@ from multiform.tasks import pendulum as task
 
 @pytest.fixture(scope="module")
 def demos():
-    eps = record_many("pendulum", list(range(8)), task.DEMO_ENV_KWARGS, workers=2)
-    assert 3 <= sum(e.outcome == "success" for e in eps) < 8
+    # 16: with a hand start anywhere in the stroke in 40 % of the demos, 8 leave the held-out demos
+    # in states no training demo visited (held-out NRMSE 0.49)
+    eps = record_many("pendulum", list(range(16)), task.DEMO_ENV_KWARGS, workers=2)
+    assert 6 <= sum(e.outcome == "success" for e in eps) < 16
     return load_skill("pendulum"), eps
 
 

@@ -86,7 +86,9 @@ def test_clocks_counters_and_active_law():
     assert r.tick(up, t + 0.001) == ["t1"]
     assert r.marking_dict() == {"P2": 1}
     assert r.active_laws == {"v_cmd": "balance"}
-    r.tick(up, t + 5.2)                          # no t3 (|theta| < 0.25), dwell > 5: success
+    r.tick(up, t + 5.2)                          # dwell 5.2 s: not yet
+    assert r.outcome is None
+    r.tick(up, t + 5.7)                          # no t3 (|theta| < 0.25), dwell > 5.5: success
     assert r.outcome == "success"
 
 

@@ -39,11 +39,13 @@ Reset options (all optional):
 * ``randomize`` (bool, default False): scale length and mass not given explicitly by U(0.8, 1.2).
 * ``theta0`` [rad], ``omega0`` [rad/s]: initial pendulum state; default hanging,
   ``pi + U(-0.1, 0.1)`` and ``U(-0.1, 0.1)``.
+* ``x0`` [m, default 0]: the hand's start along the swing axis, |x0| ≤ 0.35 (the arm starts at rest
+  in the posture that puts the flange there with the home orientation, found by inverse kinematics).
 * ``disturbances``: list of ``{"time": s, "duration": s, "torque": N m}`` torque pulses on the
   pendulum about the hinge axis (an external push: applied to the pendulum body, reacted by the
   world). :meth:`ArmPendulumEnv.push` injects one now.
 
-The arm always starts at rest in the home posture. The episode's pendulum parameters are in
+The arm always starts at rest (in the home posture unless ``x0`` says otherwise). The episode's pendulum parameters are in
 ``env.params`` (the mentor must not read them; a person does not know them either).
 
 Termination: a non-finite or exploding simulation ends the episode with ``terminated=True`` and
@@ -76,7 +78,7 @@ TERMINATE_X = 0.6
 TERMINATE_YZ = 0.25
 TERMINATE_TILT = 1.0
 _OBJ_SITE = int(mujoco.mjtObj.mjOBJ_SITE)
-_OPTIONS = ("length", "mass", "damping", "randomize", "theta0", "omega0", "disturbances")
+_OPTIONS = ("length", "mass", "damping", "randomize", "theta0", "omega0", "x0", "disturbances")
 
 
 def model_path() -> str:
@@ -191,12 +193,15 @@ class ArmPendulumEnv(gym.Env):
         theta0 = float(theta0) if theta0 is not None else math.pi + float(rng.uniform(-0.1, 0.1))
         omega0 = options.get("omega0")
         omega0 = float(omega0) if omega0 is not None else float(rng.uniform(-0.1, 0.1))
+        x0 = float(options.get("x0") or 0.0)
+        if not (math.isfinite(x0) and abs(x0) <= self.x_limit):
+            raise ValueError(f"x0 must be within ±{self.x_limit} m, got {options.get('x0')!r}")
         self._pulses = self._parse_pulses(options.get("disturbances") or [])
         self.params = p
         self._apply_params(p)
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
-        d.qpos[:] = self.home_qpos
+        d.qpos[:] = self.home_qpos if x0 == 0.0 else self._arm_posture(x0)
         d.qpos[self._hinge_q] = theta0
         d.qvel[self._hinge_v] = omega0
         mujoco.mj_forward(m, d)
@@ -204,6 +209,35 @@ class ArmPendulumEnv(gym.Env):
         self.last_torques = np.zeros(6)
         obs = self._observe()
         return obs, {"diverged": False, "out_of_workspace": False, "disturbance": 0.0}
+
+    def _arm_posture(self, x0: float) -> np.ndarray:
+        """Joint positions that put the flange ``x0`` along the swing axis from the workspace centre
+        with the home orientation: damped least squares on the flange site's Jacobian from home."""
+        m, d = self.model, self.data
+        target = np.array(self.workspace_centre) + (x0, 0.0, 0.0)
+        d.qpos[:] = self.home_qpos
+        mujoco.mj_kinematics(m, d)
+        home_rot = d.site_xmat[self._site].copy()
+        jp, jr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        quat, rq, err = np.zeros(4), np.zeros(4), np.zeros(6)
+        mujoco.mju_mat2Quat(rq, home_rot)
+        for _ in range(100):
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+            err[:3] = target - d.site_xpos[self._site]
+            mujoco.mju_mat2Quat(quat, d.site_xmat[self._site])
+            dq = np.zeros(4)
+            mujoco.mju_negQuat(dq, quat)
+            mujoco.mju_mulQuat(dq, rq, dq)
+            mujoco.mju_quat2Vel(err[3:], dq, 1.0)
+            if np.abs(err).max() < 1e-7:
+                break
+            mujoco.mj_jacSite(m, d, jp, jr, self._site)
+            J = np.vstack([jp, jr])[:, :6]
+            d.qpos[:6] += J.T @ np.linalg.solve(J @ J.T + 1e-8 * np.eye(6), err)
+        else:
+            raise RuntimeError(f"no arm posture reaches x0 = {x0} m")
+        return d.qpos.copy()
 
     @staticmethod
     def _parse_pulses(items: Sequence[Mapping[str, Any]]) -> list[tuple[float, float, float]]:

@@ -33,18 +33,26 @@ def make_mentor(**kwargs: Any):
 
 
 FALLING_DEMOS = 0.25               # fraction of demos that start with the pendulum falling from near upright
+OFFSET_DEMOS = 0.4                 # fraction of demos that start with the hand off-centre
+OFFSET_RANGE = 0.33                # m, |x0| of those
 
 
 def demo_options(seed: int) -> dict[str, Any]:
     """Reset options of demonstration ``seed``: pendulum length and mass ±20 %, random start; a
     quarter of the demos start with the pendulum falling from near upright (|θ| ≤ 0.6 rad, 2-5 rad/s),
     as after a push, so the mentor also shows a swing-up that brakes a pendulum with too much energy
-    (from hanging alone the swing-up law never sees one, and after a push it let the pendulum spin)."""
+    (from hanging alone the swing-up law never sees one, and after a push it let the pendulum spin).
+    Independently, 40 % start with the hand anywhere in the stroke (|x0| ≤ 0.33 m): after a push the
+    balance law runs the hand to the workspace limit, where a mentor who always starts centred never
+    showed a swing-up (the law commanded next to nothing there)."""
     rng = np.random.default_rng([seed, 3])
+    opts: dict[str, Any] = {"randomize": True}
     if rng.random() < FALLING_DEMOS:
-        return {"randomize": True, "theta0": float(rng.uniform(-0.6, 0.6)),
-                "omega0": float(rng.choice([-1.0, 1.0]) * rng.uniform(2.0, 5.0))}
-    return {"randomize": True}
+        opts.update(theta0=float(rng.uniform(-0.6, 0.6)), omega0=float(rng.choice([-1.0, 1.0]) * rng.uniform(2.0, 5.0)))
+    hand = np.random.default_rng([seed, 4])
+    if hand.random() < OFFSET_DEMOS:
+        opts["x0"] = float(hand.uniform(-OFFSET_RANGE, OFFSET_RANGE))
+    return opts
 
 
 def trial_options(seed: int) -> dict[str, Any]:
