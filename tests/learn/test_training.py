@@ -94,7 +94,7 @@ def test_judges_learn_from_mirror_images_but_are_tested_on_real_segments(demos):
     names = judge.feature_names_
     for src, a, b in mirrored[:5]:
         orig, img = judge.X_[rows[(src[: -len(MIRROR_SUFFIX)], a, b)]], judge.X_[rows[(src, a, b)]]
-        for v in ("theta", "omega", "x"):
+        for v in judge.variables:
             assert img[names.index(f"{v}.end")] == pytest.approx(-orig[names.index(f"{v}.end")])
             assert img[names.index(f"{v}.max")] == pytest.approx(-orig[names.index(f"{v}.min")])
         assert img[names.index("duration")] == orig[names.index("duration")]
