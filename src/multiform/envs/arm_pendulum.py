@@ -45,8 +45,9 @@ Reset options (all optional):
   pendulum about the hinge axis (an external push: applied to the pendulum body, reacted by the
   world). :meth:`ArmPendulumEnv.push` injects one now.
 
-The arm always starts at rest (in the home posture unless ``x0`` says otherwise). The episode's pendulum parameters are in
-``env.params`` (the mentor must not read them; a person does not know them either).
+The arm always starts at rest, in the home posture unless ``x0`` says otherwise. The episode's
+pendulum parameters are in ``env.params`` (the mentor must not read them; a person does not know
+them either).
 
 Termination: a non-finite or exploding simulation ends the episode with ``terminated=True`` and
 ``info["diverged"] = True``; the flange leaving the workspace far beyond the servo's soft wall
@@ -217,16 +218,14 @@ class ArmPendulumEnv(gym.Env):
         target = np.array(self.workspace_centre) + (x0, 0.0, 0.0)
         d.qpos[:] = self.home_qpos
         mujoco.mj_kinematics(m, d)
-        home_rot = d.site_xmat[self._site].copy()
         jp, jr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
-        quat, rq, err = np.zeros(4), np.zeros(4), np.zeros(6)
-        mujoco.mju_mat2Quat(rq, home_rot)
+        quat, rq, dq, err = np.zeros(4), np.zeros(4), np.zeros(4), np.zeros(6)
+        mujoco.mju_mat2Quat(rq, d.site_xmat[self._site])
         for _ in range(100):
             mujoco.mj_kinematics(m, d)
             mujoco.mj_comPos(m, d)
             err[:3] = target - d.site_xpos[self._site]
             mujoco.mju_mat2Quat(quat, d.site_xmat[self._site])
-            dq = np.zeros(4)
             mujoco.mju_negQuat(dq, quat)
             mujoco.mju_mulQuat(dq, rq, dq)
             mujoco.mju_quat2Vel(err[3:], dq, 1.0)
