@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import time
 from collections.abc import Callable
 
@@ -9,16 +10,25 @@ import numpy as np
 
 
 def latencies(fn: Callable[[], object], calls: int = 10_000, warmup: int = 500, batch: int = 1) -> np.ndarray:
-    """Seconds per call of ``fn`` over ``calls`` calls (timed in batches to keep timer overhead out)."""
+    """Seconds per call of ``fn`` over ``calls`` calls (timed in batches to keep timer overhead out).
+
+    The cyclic garbage collector is paused while timing, as ``timeit`` does and as the executor
+    does during a trial (its collection passes are not the law's cost)."""
     for _ in range(warmup):
         fn()
     out = np.empty(calls // batch)
     clock = time.perf_counter
-    for i in range(len(out)):
-        t0 = clock()
-        for _ in range(batch):
-            fn()
-        out[i] = (clock() - t0) / batch
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        for i in range(len(out)):
+            t0 = clock()
+            for _ in range(batch):
+                fn()
+            out[i] = (clock() - t0) / batch
+    finally:
+        if was:
+            gc.enable()
     return out
 
 

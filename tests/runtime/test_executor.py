@@ -73,6 +73,26 @@ def test_nan_law_ends_as_diverged_not_a_crash(env):
     assert tr.outcome == "diverged" and not tr.success
 
 
+def test_collector_paused_during_a_trial_and_restored_even_on_error(env):
+    import gc
+    ex = Executor(parse_skill(yaml.safe_dump(NET)), env, {"go": Const(0.8), "back": Spring()})
+    seen = set()
+    ex.run(seed=3, perturb=lambda k, runner, e: seen.add(gc.isenabled()))
+    assert seen == {False} and gc.isenabled()
+
+    def boom(k, runner, e):
+        raise RuntimeError("experimenter slipped")
+    with pytest.raises(RuntimeError):
+        ex.run(seed=3, perturb=boom)
+    assert gc.isenabled()
+    gc.disable()
+    try:                                       # a caller that had it off keeps it off
+        ex.run(seed=3)
+        assert not gc.isenabled()
+    finally:
+        gc.enable()
+
+
 def test_missing_law_or_command_refused(env):
     apn = parse_skill(yaml.safe_dump(NET))
     with pytest.raises(InvalidInput, match="no fitted law for back"):
