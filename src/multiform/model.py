@@ -252,6 +252,15 @@ class ModelLearners:
             self._floors = {p: region_floor(apn0, self.model.episodes, regions, p) for p in regions.places_}
         return dict(self._floors)
 
+    def include_own_stays(self, traces: Sequence[Trace]) -> dict[str, float]:
+        """Lower each place's floor to the lowest logit of the robot's own stays there that went on
+        as the skill was written (:func:`~multiform.learn.training.own_stay_floors`). Returns the
+        floors."""
+        from .learn.training import own_stay_floors
+        own = own_stay_floors(self.model.history.version(0), traces, self._regions())
+        self._floors = {p: min(z, own[p]) for p, z in self.leave_floors().items()}
+        return dict(self._floors)
+
     def region_condition(self, apn: APN, into: str, away_from: str) -> tuple[str, dict[str, Any]]:
         regions = self._regions()
         other = away_from if away_from in regions.places_ else None

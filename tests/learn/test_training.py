@@ -9,7 +9,8 @@ import pytest
 
 from multiform.demos.record import record_many
 from multiform.learn.labels import LabelStore
-from multiform.learn.training import LawSettings, fit_judge, fit_law, fit_regions, mentor_records, region_floor
+from multiform.learn.training import (LawSettings, fit_judge, fit_law, fit_regions, mentor_records,
+                                      own_stay_floors, region_floor)
 from multiform.learn.views import MIRROR_SUFFIX, law_data, mirror_episode, stays, success_mask, value_matrix
 from multiform.petri.skillfile import load_skill
 from multiform.tasks import pendulum as task
@@ -61,8 +62,43 @@ def test_region_floor_keeps_the_mentors_catches_inside(demos):
         for s, e, p in stays(apn, ep.transitions):
             if p == "P2" and ok[s:e].all():
                 assert not back.holds(V[s:e]).any()
-    fallen = np.array([[0.9, 4.0, 0.0], [-1.2, -3.0, 0.1]])      # a pushed pendulum falling
+    falling = {"theta": [0.9, -1.2], "omega": [4.0, -3.0], "x": [0.0, 0.1]}    # a pushed pendulum
+    fallen = np.column_stack([falling[n] for n in regions.input_names])
     assert back.holds(fallen).all()
+
+
+def _trace(apn, states, names, fired):
+    """A trace-like record: ``states`` rows of ``names``; ``fired`` (tick, transition) moves the token."""
+    from types import SimpleNamespace
+    ids = apn.place_ids
+    marking = np.zeros((len(states), len(ids)), np.int16)
+    where, k0 = "P1", 0
+    for k, t in fired + [(len(states), None)]:
+        marking[k0:k, ids.index(where)] = 1
+        if t is not None:
+            where, k0 = next(iter(apn.transition(t).outputs)), k
+    cols = {n: np.asarray(states, float)[:, i] for i, n in enumerate(names)}
+    return SimpleNamespace(value=cols.__getitem__, place_ids=ids, marking=marking,
+                           firings=[SimpleNamespace(tick=k, transition=t) for k, t in fired])
+
+
+def test_own_stays_that_went_on_lower_the_floor_failed_ones_do_not(demos):
+    apn, eps = demos
+    regions, _ = fit_regions(apn, eps)
+    names = list(regions.input_names)
+    odd = {"theta": -2.3, "omega": 12.2, "x": 0.3}                # faster than the mentor ever swung
+    usual = {n: float(v) for n, v in zip(names, np.median(value_matrix(apn, eps[0], names), axis=0))}
+    j = regions.places_.index("P1")
+    z_odd = float(regions.logits(np.array([[odd[n] for n in names]]))[0, j])
+    assert z_odd < region_floor(apn, eps, regions, "P1") - 0.5           # further out than any mentor stay
+    states = [[usual[n] for n in names]] * 5 + [[odd[n] for n in names]] + [[usual[n] for n in names]] * 4
+    caught = _trace(apn, states, names, [(8, "t1")])              # P1 → P2: the stay went on
+    gave_up = _trace(apn, states, names, [(8, "t4")])             # P1 → failure
+    still = _trace(apn, states, names, [])                        # never left P1
+    assert own_stay_floors(apn, [caught], regions)["P1"] == pytest.approx(z_odd)
+    assert own_stay_floors(apn, [gave_up, still], regions) == {p: 0.0 for p in regions.places_}
+    repeat = _trace(apn, states, names, [(3, "t2"), (8, "t1")])   # a repeat inside P1 does not end the stay
+    assert own_stay_floors(apn, [repeat], regions)["P1"] == pytest.approx(z_odd)
 
 
 def test_mirror_image_of_a_demo(demos):

@@ -194,6 +194,10 @@ class Practice:
         names = tuple(regions.input_names) if regions is not None else ()
         leave = None
         if regions is not None:
+            # every failed trial kept so far, not only those since the last repair: a resumed loop
+            # then lowers the floors exactly as an uninterrupted one did
+            kept = sorted(self._trace_path(0).parent.glob("trial_*.npz"))
+            self.learners.include_own_stays([Trace.load(p) for p in kept])
             leave = {p: float(1.0 / (1.0 + math.exp(-z))) for p, z in self.learners.leave_floors().items()}
         d = diagnose(apn, traces, scorer, names, leave_scores=leave)
         fix = repair(apn, d, self.learners, exhausted=frozenset(state.lambda_exhausted))
