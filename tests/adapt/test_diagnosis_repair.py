@@ -122,6 +122,23 @@ def test_new_place_when_no_place_relates():
     assert dict(back.inputs) == {new_place: 1} and set(back.outputs) <= {"P1", "P2"}
 
 
+def test_way_back_from_a_new_place_leads_where_the_lost_states_are_nearest():
+    from multiform.adapt.diagnosis import Diagnosis, Exit
+    from multiform.adapt.repair import add_new_place
+    apn = load_skill("pendulum")
+    for scores, home in (({"P1": 0.06, "P2": 1e-12}, "P1"),     # a spin thrown out of the swing-up
+                         ({"P1": 1e-9, "P2": 1e-3}, "P2")):
+        d = Diagnosis(trials=3, failures=3,
+                      exits=[Exit(k, "P1", 100, [-2.1, 11.8], scores, None) for k in range(3)])
+        fake = FakeLearners()
+        r = add_new_place(apn, d, fake)
+        new_place = r.revisions[0].target
+        back = r.apn.transition(r.revisions[2].target)
+        assert dict(back.inputs) == {new_place: 1} and dict(back.outputs) == {home: 1}
+        assert ("region", home, new_place) in fake.calls
+        assert back.law == {"P1": "swing_up", "P2": "balance"}[home]   # the law of where it goes back
+
+
 def test_one_lost_trial_is_not_enough_for_a_new_place():
     apn = load_skill("pendulum")
     tr, scores = _pushed(apn, belongs_to_p1=False)
