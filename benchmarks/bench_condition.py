@@ -7,7 +7,7 @@ pinned to one thread through threadpoolctl (``_timing.single_thread``). scikit-l
 ``decision_function`` on one sample is timed for comparison.
 
 Where it holds: on synthetic switch data by default; with ``--dataset demos.h5 [--skill pendulum]
-[--transition t1] [--names theta omega x]`` the condition is learned from the mentor's switches in
+[--transition t1] [--names theta omega]`` the condition is learned from the mentor's switches in
 all of ``demos.h5`` (``training.fit_switch_condition``, as the repair loop does) and checked on
 held-out demos (``--test-dataset more.h5`` and/or ``--record N``, as in ``bench_judges.py``;
 without them the last 30 % of ``demos.h5``). Printed, each with a Wilson 95 % interval:
@@ -92,11 +92,11 @@ def synthetic_accuracy() -> None:
           "swing samples")
 
 
-def dataset_accuracy(path: str, skill: str, transition: str, names: list[str], test: list, near: float,
+def dataset_accuracy(path: str, skill: str, transition: str, names: list[str] | None, test: list, near: float,
                      around: float) -> None:
     from multiform.demos.dataset import read_dataset
     from multiform.learn.condition import switch_windows, window_hits
-    from multiform.learn.training import fit_switch_condition
+    from multiform.learn.training import fit_switch_condition, switch_variables
     from multiform.learn.views import switch_data
     from multiform.petri.skillfile import load_skill
     from multiform.stats import wilson
@@ -111,6 +111,7 @@ def dataset_accuracy(path: str, skill: str, transition: str, names: list[str], t
         cut = max(1, int(0.7 * len(eps)))
         eps, test = eps[:cut], eps[cut:]
         print(f"{path}: no held-out dataset; training on the first {cut} demos, testing on the other {len(test)}")
+    names = list(names or switch_variables(apn, transition))
     t0 = time.perf_counter()
     cond, info = fit_switch_condition(apn, eps, transition, names)      # what the repair loop fits
     print(f"{transition} over {names}: fitted on {len(eps)} demos of {path} in {time.perf_counter() - t0:.1f} s "
@@ -145,8 +146,9 @@ def main() -> None:
     ap.add_argument("--dataset")
     ap.add_argument("--skill", default="pendulum")
     ap.add_argument("--transition", default="t1")
-    ap.add_argument("--names", nargs="+", default=["theta", "omega", "x"],
-                    help="the condition's variables (the repair loop uses the judged variables of P1)")
+    ap.add_argument("--names", nargs="+",
+                    help="the condition's variables (default: those the repair loop reads, "
+                         "training.switch_variables: the judged variables of the place it leaves)")
     ap.add_argument("--test-dataset", help="held-out demos (read, or written by --record)")
     ap.add_argument("--record", type=int, default=0, help="record this many held-out demos")
     ap.add_argument("--test-seed", type=int, default=TEST_SEED, help="first seed of the recorded held-out demos")

@@ -206,21 +206,8 @@ class ModelLearners:
         return name
 
     def switch_variables(self, apn: APN, transition: str) -> tuple[str, ...]:
-        """The variables a switch condition reads: the judged variables of the place it leaves, and
-        the state variables the mentor's own condition for it reads (the mentor said what matters,
-        if not exactly how: a regrasp condition learned without ``grip`` fired before the catch)."""
-        t = apn.transition(transition)
-        names: list[str] = []
-        for p in t.inputs:
-            for v in apn.place(p).judge:
-                if v not in names:
-                    names.append(v)
-        guard = t.condition.guard
-        state = set(apn.variables) | set(apn.derived)
-        for v in sorted(guard.variables if guard is not None else ()):
-            if v in state and v not in names:
-                names.append(v)
-        return tuple(names) or tuple(apn.variables)
+        from .learn.training import switch_variables
+        return switch_variables(apn, transition)
 
     def has_switches(self, apn: APN, transition: str) -> bool:
         names = self.switch_variables(apn, transition)

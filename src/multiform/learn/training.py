@@ -254,6 +254,24 @@ SWITCH_GRID = ({"C": 10.0, "gamma": 1.0}, {"C": 10.0, "gamma": 3.0}, {"C": 100.0
 SWITCH_WINDOWS = (0.02, 0.05, 0.1, 0.2)     # s after a switch whose states are positives
 
 
+def switch_variables(apn: APN, transition: str) -> tuple[str, ...]:
+    """The variables a switch condition reads: the judged variables of the place it leaves, and
+    the state variables the mentor's own condition for it reads (the mentor said what matters,
+    if not exactly how: a regrasp condition learned without ``grip`` fired before the catch)."""
+    t = apn.transition(transition)
+    names: list[str] = []
+    for p in t.inputs:
+        for v in apn.place(p).judge:
+            if v not in names:
+                names.append(v)
+    guard = t.condition.guard
+    state = set(apn.variables) | set(apn.derived)
+    for v in sorted(guard.variables if guard is not None else ()):
+        if v in state and v not in names:
+            names.append(v)
+    return tuple(names) or tuple(apn.variables)
+
+
 def fit_switch_condition(apn: APN, episodes: Sequence[Episode], transition: str, names: Sequence[str],
                          seed: int = 0, max_false_positive: float = 0.01, folds: int = 3,
                          windows: Sequence[float] = SWITCH_WINDOWS, moment: float = 0.1
