@@ -187,17 +187,16 @@ class Practice:
 
     def _repair(self, state: PracticeState) -> None:
         apn = self.model.apn
-        traces = [Trace.load(self._trace_path(k)) for k in state.failed_since_repair
-                  if self._trace_path(k).exists()]
+        # every failed trial kept so far: those since the last repair are diagnosed; all of them
+        # lower the leave floors, so a resumed loop lowers them exactly as an uninterrupted one did
+        kept = {k: Trace.load(self._trace_path(k)) for k in range(state.trial) if self._trace_path(k).exists()}
+        traces = [kept[k] for k in state.failed_since_repair if k in kept]
         regions = self.model.regions()
         scorer = regions.scores if regions is not None else None
         names = tuple(regions.input_names) if regions is not None else ()
         leave = None
         if regions is not None:
-            # every failed trial kept so far, not only those since the last repair: a resumed loop
-            # then lowers the floors exactly as an uninterrupted one did
-            kept = sorted(self._trace_path(0).parent.glob("trial_*.npz"))
-            self.learners.include_own_stays([Trace.load(p) for p in kept])
+            self.learners.include_own_stays(list(kept.values()))
             leave = {p: float(1.0 / (1.0 + math.exp(-z))) for p, z in self.learners.leave_floors().items()}
         d = diagnose(apn, traces, scorer, names, leave_scores=leave)
         fix = repair(apn, d, self.learners, exhausted=frozenset(state.lambda_exhausted))
