@@ -27,7 +27,7 @@ from tqdm import tqdm
 from .adapt.evaluation import TrialSpec, Variant, evaluate
 from .adapt.practice import Practice, PracticeConfig
 from .demos.dataset import read_dataset, write_dataset
-from .demos.record import record_many
+from .demos.record import demo_push, record_many
 from .errors import InvalidInput
 from .io import write_json
 from .learn.labels import LabelStore
@@ -86,11 +86,11 @@ class Job:
         path = self.out / "demos.h5"
         seeds = [self.cfg.seed * 100_000 + i for i in range(self.cfg.demos)]
         if path.exists():
-            try:        # reused only if it is the set this job would record (same seeds and start options)
-                old = [(e.seed, e.reset_options) for e in read_dataset(path)]
+            try:        # reused only if it is the set this job would record (same seeds, start options, pushes)
+                old = read_dataset(path).episodes
             except InvalidInput:
                 old = []
-            if old == [(s, self.task.demo_options(s)) for s in seeds]:
+            if len(old) == len(seeds) and all(self._recorded_as_planned(e, s) for e, s in zip(old, seeds)):
                 self.log(f"  reusing {path}")
                 return path
         with self._bar(len(seeds), "recording demos", unit="demo") as bar:
@@ -101,6 +101,12 @@ class Job:
         ok = sum(e.outcome == "success" for e in eps)
         self.log(f"  {len(eps)} demos, mentor succeeded in {ok} ({100 * ok / len(eps):.0f} %)")
         return path
+
+    def _recorded_as_planned(self, episode: Any, seed: int) -> bool:
+        options = dict(episode.reset_options)
+        pulses = options.pop("disturbances", None)
+        return (episode.seed == seed and options == self.task.demo_options(seed)
+                and (pulses is not None) == (demo_push(self.task, seed) is not None))
 
     # -- 2. training ------------------------------------------------------------------------------
     def train(self, demos: Path) -> SkillModel:

@@ -10,7 +10,7 @@ import pytest
 
 from multiform.demos.episode import Episode
 from multiform.demos.pendulum_mentor import PendulumMentor
-from multiform.demos.record import record_episode
+from multiform.demos.record import PushDuring, record_episode
 from multiform.envs.arm_pendulum import ArmPendulumEnv
 from multiform.envs.osc import OBSERVATION_NAMES
 from multiform.report.video import episode_video, replay
@@ -151,6 +151,29 @@ def test_replaying_a_demo_from_its_seed_reproduces_it(env):
     assert not np.array_equal(other.obs[:100], a.obs[:100])
 
 
+def test_pushed_while_balancing_the_mentor_swings_up_again_and_the_replay_reproduces_it(env):
+    """A push the mentor's balance cannot absorb: the pendulum falls, the mentor swings it up again
+    (tagged t2, after t3: its own definition has no such transition), catches and holds it."""
+    push = PushDuring(tags=("t1", "t3"), after=2.0, size=0.5, duration=0.1)
+    ep = record_episode(env, PendulumMentor(mistake="none"), seed=3, options=OPTS, push=push)
+    assert tags_of(ep) == ["t0", "t2", "t1", "t3", "t2", "t1", "t3"]
+    assert [lab.success for lab in ep.labels] == [True, True, True, False, True, True, True]
+    (pulse,) = ep.reset_options["disturbances"]
+    t1_start = next(s for s, _, t in ep.segments() if t == "t1")
+    assert pulse["time"] == pytest.approx(t1_start * ep.dt + 2.0, abs=2e-3) and pulse["torque"] == 0.5
+    obs, _ = replay(env, ep)
+    assert np.array_equal(obs, ep.obs)
+    without = record_episode(env, PendulumMentor(mistake="none"), seed=3, options=OPTS)
+    assert tags_of(without) == ["t0", "t2", "t1", "t3"] and "disturbances" not in without.reset_options
+
+
+def test_a_mentor_without_recoveries_gives_up_when_the_pendulum_falls(env):
+    push = PushDuring(tags=("t1", "t3"), after=2.0, size=0.5, duration=0.1)
+    ep = record_episode(env, PendulumMentor(mistake="none", recover=0), seed=3, options=OPTS, push=push)
+    assert tags_of(ep) == ["t0", "t2", "t1", "t3"] and ep.outcome == "failure"
+    assert [lab.success for lab in ep.labels] == [True, True, True, False]
+
+
 def test_the_mentor_decides_from_observations_alone(env):
     """Fed the recorded observations (no info, no env), a fresh mentor issues the same commands."""
     rec = PendulumMentor()
@@ -189,6 +212,8 @@ def test_labels_follow_what_the_mentor_saw():
     th3 = th.copy()
     th3[3200:] = 1.0
     assert [lab.success for lab in m.label(synthetic(th3, om3, tags))] == [False, False, False]
+    # a catch the demo does not outlast by a second is no success, however upright it was
+    assert [lab.success for lab in m.label(synthetic(th[:3400], om[:3400], tags[:3400]))] == [True, False]
 
 
 def test_a_10_second_demo_is_written_to_mp4(env, tmp_path):

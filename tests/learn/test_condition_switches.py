@@ -15,7 +15,7 @@ NAMES = ["theta", "omega", "x"]
 
 @pytest.fixture(scope="module")
 def demos():
-    return record_many("pendulum", list(range(100, 110)), task.DEMO_ENV_KWARGS, workers=2)
+    return record_many("pendulum", list(range(100, 116)), task.DEMO_ENV_KWARGS, workers=2)
 
 
 def test_switch_windows_hold_the_states_around_each_successful_switch(demos):
@@ -41,10 +41,10 @@ def test_window_hits_counts_an_empty_window_as_a_miss():
 
 def test_switch_condition_holds_at_held_out_switches_not_far_from_them(demos):
     apn = load_skill("pendulum")
-    cond, info = fit_switch_condition(apn, demos[:7], "t1", NAMES, windows=(0.02, 0.1), folds=3)
+    cond, info = fit_switch_condition(apn, demos[:10], "t1", NAMES, windows=(0.02, 0.1), folds=3)
     assert info["window"] in (0.02, 0.1)
     assert cond.n_support_ <= 500
-    test = demos[7:]
+    test = demos[10:]
     d = switch_data(apn, test, "t1", NAMES)
     assert cond.holds(d.negatives).mean() <= 0.05
     hits = window_hits(cond, switch_windows(apn, test, "t1", NAMES, before=0.3, after=0.3, near=("theta", 0.15)))

@@ -18,10 +18,10 @@ from multiform.tasks import pendulum as task
 
 @pytest.fixture(scope="module")
 def demos():
-    # 16: with a hand start anywhere in the stroke in 40 % of the demos, 8 leave the held-out demos
-    # in states no training demo visited (held-out NRMSE 0.49)
-    eps = record_many("pendulum", list(range(16)), task.DEMO_ENV_KWARGS, workers=2)
-    assert 6 <= sum(e.outcome == "success" for e in eps) < 16
+    # 24: with a hand start anywhere in the stroke in 40 % of the demos and a push in 30 %, 16 leave
+    # the held-out demos in states no training demo visited (held-out NRMSE 0.53 against 0.29)
+    eps = record_many("pendulum", list(range(24)), task.DEMO_ENV_KWARGS, workers=2)
+    assert 8 <= sum(e.outcome == "success" for e in eps) < 24
     return load_skill("pendulum"), eps
 
 
@@ -86,7 +86,7 @@ def test_own_stays_that_went_on_lower_the_floor_failed_ones_do_not(demos):
     apn, eps = demos
     regions, _ = fit_regions(apn, eps)
     names = list(regions.input_names)
-    odd = {"theta": -2.3, "omega": 12.2, "x": 0.3}                # faster than the mentor ever swung
+    odd = {"theta": -2.3, "omega": 16.0, "x": 0.3}                # faster than the mentor ever swung
     usual = {n: float(v) for n, v in zip(names, np.median(value_matrix(apn, eps[0], names), axis=0))}
     j = regions.places_.index("P1")
     z_odd = float(regions.logits(np.array([[odd[n] for n in names]]))[0, j])

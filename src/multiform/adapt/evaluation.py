@@ -91,7 +91,9 @@ def evaluate(task: str, variant: Variant, trials: Sequence[TrialSpec], workers: 
         ctx = mp.get_context("fork")
         with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init,
                                  initargs=(task, variant, env_overrides)) as pool:
-            for i, res in enumerate(pool.map(_run, trials, chunksize=max(1, len(trials) // (8 * workers)))):
+            # one trial per task: a trial takes about a second, its result is small, and larger chunks
+            # left a worker idle for a whole chunk at the end of each evaluation
+            for i, res in enumerate(pool.map(_run, trials)):
                 results.append(res)
                 if progress:
                     progress(i + 1, len(trials))

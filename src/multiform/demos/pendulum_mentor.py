@@ -6,14 +6,15 @@ pendulum (0.4 m), not the length or mass of this episode, and it sees only the o
 
 Its skill:
 
-* **Swing-up** (tag ``t0`` for the first stroke — a 0.3 s push of the hand that starts the swing,
-  then pumping until the pendulum's first turning point — then ``t2``): energy pumping. Moving the
+* **Swing-up** (tag ``t0`` for the first stroke — a 0.3 s push of the hand that starts the swing
+  of a pendulum at rest, then pumping until the pendulum's first turning point — then ``t2``): energy pumping. Moving the
   hand against the pendulum's lateral displacement, ``v = -c sin(theta)``, gives the hand an
   acceleration ``-c omega cos(theta)`` and the pendulum's energy
   ``E = lambda omega^2 / 2 + g (cos(theta) - 1)`` a rate ``c (omega cos(theta))^2 >= 0``. Like a
   person, the mentor judges the energy by how high the pendulum swings (``E = g (cos - 1)`` at each
   turning point) or how fast it passes the top, sets ``c`` in proportion to the deficit
-  (saturated; negative when there is too much), anticipates by 80 ms (``sin(theta + 0.08 omega)``)
+  (saturated; negative when there is too much, and then steeper: braking a pendulum that races
+  over the top is urgent), anticipates by 80 ms (``sin(theta + 0.08 omega)``)
   and pulls the hand gently back to the centre.
 * **Switch** (tag ``t1``, the first ``catch_time`` = 0.5 s): when the pendulum is seen rising
   towards upright, near it (``|theta| < switch_angle``), slow (``|omega| < switch_rate``) and with
@@ -39,8 +40,10 @@ Its mistakes (with probability ``mistake_rate`` a demo contains one, kind drawn 
 * ``lapse``: an attention lapse while balancing freezes the stick for 0.4-1.0 s (``t3`` fails).
 
 It finishes after ``hold_time`` s of balancing after the catch (success) or when it gives up: the
-pendulum is seen beyond ``fall_angle`` while balancing, or the swing-up has not succeeded within
-``give_up`` s.
+swing-up has not succeeded within ``give_up`` s of its start. When the pendulum is seen beyond
+``fall_angle`` while balancing (a slip, or an experimenter's push), the mentor swings it up again,
+as a person would, up to ``recover`` times per demo (tag ``t2``, a fresh ``give_up`` clock; its
+definition has no transition for that: the robot must find one); after that it gives up.
 
 :meth:`PendulumMentor.label` judges each segment from the recorded observations, as the person
 would, with its own tolerances: ``t0`` succeeded if the swing's energy grew by 2 % of the
@@ -86,11 +89,14 @@ class PendulumMentor:
       forbids them).
     * Swing-up: ``kick`` and ``kick_time`` (the first push), ``stroke_max`` (longest first
       stroke), ``pump_gain`` (largest pumping amplitude), ``energy_gain`` (pumping per unit of
-      energy deficit, in units of g), ``energy_margin`` (energy aimed for above upright at rest, in
-      units of g), ``lead`` (anticipation), ``centring`` (pull back to the centre, 1/s).
+      energy deficit, in units of g), ``brake_gain`` (braking per unit of energy excess beyond
+      ``brake_margin`` g, below which it brakes with ``energy_gain``: a person who sees the
+      pendulum race over the top brakes it firmly), ``energy_margin`` (energy aimed
+      for above upright at rest, in units of g), ``lead`` (anticipation), ``centring`` (pull back
+      to the centre, 1/s).
     * Switch and balance: ``switch_angle``, ``switch_rate``, ``catch_time`` (length of ``t1``),
       ``hold_time`` (balance wanted), ``give_up`` (longest swing-up), ``fall_angle`` (the pendulum
-      has fallen).
+      has fallen), ``recover`` (how often per demo it swings a fallen pendulum up again).
     """
 
     name = "scripted-pendulum"
@@ -101,10 +107,11 @@ class PendulumMentor:
                  motor_noise: float = 0.02, mistake_rate: float = 0.28,
                  mistake_weights: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0),
                  mistake: str | None = None, kick: float = 0.5, kick_time: float = 0.3, stroke_max: float = 2.0,
-                 pump_gain: float = 1.2, energy_gain: float = 0.4, energy_margin: float = 0.03,
+                 pump_gain: float = 1.2, energy_gain: float = 0.4, brake_gain: float = 1.5, brake_margin: float = 0.0,
+                 energy_margin: float = 0.03,
                  lead: float = 0.08, centring: float = 1.0, switch_angle: float = 0.4, switch_rate: float = 2.5,
                  catch_time: float = 0.5, hold_time: float = 5.0, give_up: float = 20.0, fall_angle: float = 0.8,
-                 dt: float = 0.001):
+                 recover: int = 1, dt: float = 0.001):
         if mistake is not None and mistake not in MISTAKES + ("none",):
             raise ValueError(f"mistake must be one of {MISTAKES + ('none',)} or None, not {mistake!r}")
         self.delay = delay
@@ -120,6 +127,8 @@ class PendulumMentor:
         self.mistake = mistake
         self.pump_gain = pump_gain
         self.energy_gain = energy_gain
+        self.brake_gain = brake_gain
+        self.brake_margin = brake_margin
         self.lead = lead
         self.energy_margin = energy_margin
         self.centring = centring
@@ -128,6 +137,7 @@ class PendulumMentor:
         self.stroke_max = stroke_max
         self.catch_time, self.hold_time, self.give_up = catch_time, hold_time, give_up
         self.fall_angle = fall_angle
+        self.recover = int(recover)
         self.dt = dt
         self.lam = equivalent_length(NOMINAL["length"])     # what the person believes
         self._buf = np.zeros((512, 4))
@@ -155,11 +165,13 @@ class PendulumMentor:
         self.k = 0
         self.phase = "t0"
         self.phase_start = 0
+        self.swing_start = 0
+        self.recoveries = 0
         self.cmd = 0.0
         self.target = 0.0
         self._prev_omega_sign = 0.0
         self._swinging = False
-        self._kick_dir = 0.0
+        self._kick_dir: float | None = None
         self._energy = -2.0 * G
         self._done = False
         self.outcome = ""
@@ -213,21 +225,29 @@ class PendulumMentor:
                     self._swinging = True
                 if (self._swinging and turned) or t >= self.stroke_max:
                     self._enter("t2", k)
-            if t >= self.give_up:
+            if (k - self.swing_start) * self.dt >= self.give_up:
                 self._finish("failure")
                 return self.cmd
             if self._should_switch(th, om):
                 self._enter("t1", k)
                 self.switch_step = k
                 return self._command(self._balance(th, om, x, xd))
-            if phase == "t0" and t < self.kick_time:       # the first push that starts the swing
-                if self._kick_dir == 0.0:
-                    self._kick_dir = -1.0 if math.sin(th) > 0 else 1.0
-                return self._command(self.kick * self._kick_dir)
+            if phase == "t0" and t < self.kick_time:       # the push that starts a swing from rest
+                if self._kick_dir is None:
+                    self._kick_dir = 0.0 if abs(om) > 1.0 else (-1.0 if math.sin(th) > 0 else 1.0)
+                if self._kick_dir:
+                    return self._command(self.kick * self._kick_dir)
             return self._command(self._pump(th, om, x, xd, self._energy))
         if abs(th) > self.fall_angle:
-            self._finish("failure")
-            return self.cmd
+            if self.recoveries >= self.recover:
+                self._finish("failure")
+                return self.cmd
+            self._enter("t2", k)                             # it fell: swing it up again
+            self.swing_start = k
+            self.recoveries += 1
+            self._prev_omega_sign = 1.0 if om > 0 else -1.0
+            self._energy = e
+            return self._command(self._pump(th, om, x, xd, e))
         if phase == "t1" and (k - self.phase_start) * self.dt >= self.catch_time:
             self._enter("t3", k)
             self.balance_start = k
@@ -255,7 +275,10 @@ class PendulumMentor:
         target = self.energy_margin * G
         if self.mistake_kind == "over_pump":
             target = self._overpump * G
-        c = min(max(self.energy_gain * (target - e) / G, -1.0), 1.0) * self.pump_gain
+        d = (target - e) / G                                 # deficit (negative: excess), in g
+        if d < -self.brake_margin:                           # clearly too much: brake firmly
+            d = -self.brake_margin + (self.brake_gain / self.energy_gain) * (d + self.brake_margin)
+        c = min(max(self.energy_gain * d, -1.0), 1.0) * self.pump_gain
         if self.mistake_kind == "wrong_phase" and self.k * self.dt >= self._wrong_from:
             c = -c                                           # moves with the pendulum, not against it
         return -c * math.sin(th + self.lead * om) - self.centring * x
@@ -289,9 +312,9 @@ class PendulumMentor:
         dt = episode.dt
         segments = episode.segments()
 
-        def caught(start: int, end: int) -> bool:
-            after = slice(start, min(n, end + int(round(1.0 / dt))))
-            return end < n and bool(np.all(np.abs(th[after]) < self.fall_angle))
+        def caught(start: int, end: int) -> bool:       # held through the catch and the second after it
+            after = end + int(round(1.0 / dt))
+            return after <= n and bool(np.all(np.abs(th[start:after]) < self.fall_angle))
 
         labels = []
         for i, (start, end, tag) in enumerate(segments):

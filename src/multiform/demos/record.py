@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
@@ -10,13 +11,46 @@ import numpy as np
 from .episode import Episode, Mentor
 
 
+@dataclass
+class PushDuring:
+    """The experimenter's push during a demonstration: once, ``after`` s into the mentor's first
+    run of samples tagged with one of ``tags`` (the transitions into the place the push is aimed at:
+    a person pushes a pendulum the mentor has balanced for a moment), a torque pulse ``size`` [N m]
+    for ``duration`` s through ``env.unwrapped.push``. ``pulses`` keeps what was applied (absolute
+    times), so the episode's reset options can replay it."""
+
+    tags: tuple[str, ...]
+    after: float
+    size: float
+    duration: float
+
+    def __post_init__(self) -> None:
+        self.pulses: list[dict[str, float]] = []
+        self._since: int | None = None
+
+    def __call__(self, tick: int, tag: str, env: gym.Env) -> None:
+        if self.pulses:
+            return
+        if tag not in self.tags:
+            self._since = None if self._since is None else -1      # the first such segment only
+            return
+        if self._since is None:
+            self._since = tick
+        if self._since >= 0 and (tick - self._since) * env.unwrapped.dt >= self.after:
+            t = float(env.unwrapped.data.time)
+            env.unwrapped.push(self.size, self.duration)
+            self.pulses.append({"time": t, "duration": self.duration, "torque": self.size})
+
+
 def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, Any] | None = None,
-                   max_steps: int | None = None) -> Episode:
+                   max_steps: int | None = None, push: PushDuring | None = None) -> Episode:
     """Record one demonstration of ``mentor`` on ``env`` (an env in end-effector command mode).
 
     The env is reset with ``seed`` and ``options``; the mentor gets its own generator seeded from
     ``seed`` so a demo is reproducible from its seed alone. The demo ends when the mentor says so,
-    the env terminates or truncates, or after ``max_steps``.
+    the env terminates or truncates, or after ``max_steps``. With ``push`` the experimenter pushes
+    during the demo; the episode's reset options then hold the pulses applied (``disturbances``,
+    empty if the push never came), so replaying them from the seed reproduces the demo.
     """
     base = env.unwrapped
     obs, info = env.reset(seed=seed, options=options)
@@ -31,16 +65,26 @@ def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, A
         obs_rows.append(np.asarray(obs, dtype=np.float64))
         act_rows.append(cmd)
         tags.append(tag)
+        if push is not None:
+            push(len(tags) - 1, tag, env)
         obs, _, terminated, truncated, info = env.step(cmd)
         t += dt
         if terminated or truncated or mentor.finished():
             break
+    options = dict(options or {})
+    if push is not None:
+        options["disturbances"] = list(options.get("disturbances") or []) + push.pulses
     episode = Episode(
         obs=np.asarray(obs_rows), actions=np.asarray(act_rows), transitions=np.asarray(tags, dtype=str),
         observation_names=tuple(base.observation_names), command_names=tuple(base.command_names),
-        dt=dt, seed=seed, reset_options=dict(options or {}))
+        dt=dt, seed=seed, reset_options=options)
     episode.labels = list(mentor.label(episode))
-    episode.outcome = "success" if episode.labels and all(l.success for l in episode.labels) else "failure"
+    # the mentor's verdict on the whole attempt where it gives one (a pushed demo that the mentor
+    # recovered and balanced is a success with one failed segment); else: every segment succeeded
+    verdict = getattr(mentor, "outcome", "")
+    if verdict not in ("success", "failure"):
+        verdict = "success" if episode.labels and all(l.success for l in episode.labels) else "failure"
+    episode.outcome = verdict
     return episode
 
 
@@ -56,9 +100,16 @@ def _init(task: str, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) 
     _WORKER.update(task=t, env=gym.make(t.ENV_ID, **env_kwargs), mentor=t.make_mentor(**mentor_kwargs))
 
 
+def demo_push(task: Any, seed: int) -> PushDuring | None:
+    """The experimenter's push in demonstration ``seed`` of ``task`` (its ``demo_push``), if any."""
+    plan = getattr(task, "demo_push", None)
+    spec = plan(seed) if plan is not None else None
+    return PushDuring(**spec) if spec else None
+
+
 def _record(seed: int) -> Episode:
     w = _WORKER
-    return record_episode(w["env"], w["mentor"], seed, w["task"].demo_options(seed))
+    return record_episode(w["env"], w["mentor"], seed, w["task"].demo_options(seed), push=demo_push(w["task"], seed))
 
 
 def record_many(task: str, seeds: list[int], env_kwargs: dict[str, Any] | None = None,

@@ -55,6 +55,19 @@ def demo_options(seed: int) -> dict[str, Any]:
     return opts
 
 
+PUSHED_DEMOS = 0.3                 # fraction of demos in which the experimenter pushes the balanced pendulum
+
+
+def demo_push(seed: int) -> dict[str, Any] | None:
+    """The experimenter's push in demonstration ``seed``, as in practice and evaluation (:func:`push`),
+    in ``PUSHED_DEMOS`` of the demos: the mentor then shows how it swings the pendulum up again from
+    what the push leaves behind (the hand at the end of its stroke, the pendulum spinning)."""
+    if np.random.default_rng([seed, 5]).random() >= PUSHED_DEMOS:
+        return None
+    p = push(seed)
+    return {"tags": ("t1", "t3"), "after": p["after"], "size": p["size"], "duration": p["duration"]}
+
+
 def trial_options(seed: int) -> dict[str, Any]:
     """Reset options of practice and evaluation trials (same randomisation as the demos)."""
     return {"randomize": True}
