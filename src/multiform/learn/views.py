@@ -108,13 +108,17 @@ class LawData:
     episode: np.ndarray
 
 
-def law_data(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool = True) -> LawData:
+def law_data(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool = True,
+             lag: float | None = None) -> LawData:
     """The samples in which the mentor executed a transition run by ``law``.
 
     With ``success_only`` (the paper: "the robot only learns from the successful demonstration"),
-    only samples inside segments the mentor labelled success are kept.
+    only samples inside segments the mentor labelled success are kept. ``lag`` [s] (default: the
+    law's, from the skill file) pairs each state with the command the mentor gave that long after it
+    (both inside the kept samples): a person's command answers what they saw a reaction time earlier.
     """
     spec = apn.laws[law]
+    lag = spec.lag if lag is None else lag
     tids = {t.id for t in apn.transitions if t.law == law}
     out_idx = None
     xs, ys, eps = [], [], []
@@ -124,11 +128,15 @@ def law_data(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool
         keep = np.isin(ep.transitions, list(tids))
         if success_only:
             keep &= success_mask(ep)
+        shift = int(round(lag / ep.dt))
+        if shift:
+            keep[len(keep) - shift:] = False
+            keep[:len(keep) - shift] &= keep[shift:]
         if not keep.any():
             continue
         X = value_matrix(apn, ep, spec.inputs)[keep]
         xs.append(X)
-        ys.append(ep.actions[keep][:, out_idx])
+        ys.append(ep.actions[np.flatnonzero(keep) + shift][:, out_idx])
         eps.append(np.full(len(X), k))
     if not xs:
         return LawData(np.zeros((0, len(spec.inputs))), np.zeros((0, len(spec.outputs))), np.zeros(0, int))

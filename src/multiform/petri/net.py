@@ -123,15 +123,17 @@ def _arcs_data(arcs: Mapping[str, int]) -> list[str] | dict[str, int]:
 
 @dataclass(frozen=True)
 class Law:
-    """A control law: which variables it reads, which commands it writes, and its GP's mean function
+    """A control law: which variables it reads, which commands it writes, its GP's mean function
     (``constant``, or ``linear`` for a maneuver that is a feedback about an operating point and
-    should extrapolate as one)."""
+    should extrapolate as one), and the mentor's reaction time it is learned across (``lag`` s: the
+    state at t is paired with the command the mentor gave at t + lag)."""
 
     name: str
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
     mean: str = "constant"
     description: str = ""
+    lag: float = 0.0
 
     def to_data(self, commands: tuple[str, ...]) -> dict[str, Any]:
         out: dict[str, Any] = {"inputs": list(self.inputs)}
@@ -139,6 +141,8 @@ class Law:
             out["outputs"] = list(self.outputs)
         if self.mean != "constant":
             out["mean"] = self.mean
+        if self.lag:
+            out["lag"] = self.lag
         if self.description:
             out["description"] = self.description
         return out

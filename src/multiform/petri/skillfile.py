@@ -27,7 +27,8 @@ TOP_KEYS = {"skill", "description", "env", "control_rate", "max_duration", "vari
             "mirror"}
 PLACE_KEYS = {"label", "final", "judge"}
 TRANSITION_KEYS = {"label", "in", "out", "law", "lambda", "condition"}
-LAW_KEYS = {"inputs", "outputs", "mean", "description"}
+LAW_KEYS = {"inputs", "outputs", "mean", "lag", "description"}
+MAX_LAG = 1.0                    # s: a reaction time, not a plan
 LAW_MEANS = ("constant", "linear")
 
 
@@ -392,8 +393,13 @@ def _laws(raw: Any, allowed: frozenset[str], commands: tuple[str, ...], bad) -> 
         desc = spec.get("description", "")
         if not isinstance(desc, str):
             bad(f"{el}.description", "must be text")
+        lag = spec.get("lag", 0.0)
+        if isinstance(lag, bool) or not isinstance(lag, (int, float)) or not 0.0 <= lag <= MAX_LAG:
+            bad(f"{el}.lag", f"must be a number of seconds from 0 to {MAX_LAG}, got {lag!r}")
+            lag = 0.0
         out[name] = Law(name=name, inputs=tuple(inputs), outputs=tuple(outputs),
-                        mean=mean if mean in LAW_MEANS else "constant", description=desc if isinstance(desc, str) else "")
+                        mean=mean if mean in LAW_MEANS else "constant", description=desc if isinstance(desc, str) else "",
+                        lag=float(lag))
     return out
 
 
