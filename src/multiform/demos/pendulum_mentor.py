@@ -7,10 +7,10 @@ pendulum (0.4 m), not the length or mass of this episode, and it sees only the o
 Its skill:
 
 * **Swing-up** (tag ``t0`` for the first stroke — a 0.3 s push of the hand that starts the swing
-  of a pendulum at rest, then pumping until the pendulum's first turning point — then ``t2``): energy pumping. Moving the
-  hand against the pendulum's lateral displacement, ``v = -c sin(theta)``, gives the hand an
-  acceleration ``-c omega cos(theta)`` and the pendulum's energy
-  ``E = lambda omega^2 / 2 + g (cos(theta) - 1)`` a rate ``c (omega cos(theta))^2 >= 0``. Like a
+  of a pendulum at rest, then pumping until the pendulum's first turning point — then ``t2``):
+  energy pumping. Moving the hand against the pendulum's lateral displacement,
+  ``v = -c sin(theta)``, gives the hand an acceleration ``-c omega cos(theta)`` and the pendulum's
+  energy ``E = lambda omega^2 / 2 + g (cos(theta) - 1)`` a rate ``c (omega cos(theta))^2 >= 0``. Like a
   person, the mentor judges the energy by how high the pendulum swings (``E = g (cos - 1)`` at each
   turning point) or how fast it passes the top, sets ``c`` in proportion to the deficit
   (saturated; negative when there is too much, and then steeper: braking a pendulum that races
@@ -89,9 +89,8 @@ class PendulumMentor:
       forbids them).
     * Swing-up: ``kick`` and ``kick_time`` (the first push), ``stroke_max`` (longest first
       stroke), ``pump_gain`` (largest pumping amplitude), ``energy_gain`` (pumping per unit of
-      energy deficit, in units of g), ``brake_gain`` (braking per unit of energy excess beyond
-      ``brake_margin`` g, below which it brakes with ``energy_gain``: a person who sees the
-      pendulum race over the top brakes it firmly), ``energy_margin`` (energy aimed
+      energy deficit, in units of g), ``brake_gain`` (braking per unit of energy excess: a person
+      who sees the pendulum race over the top brakes it firmly), ``energy_margin`` (energy aimed
       for above upright at rest, in units of g), ``lead`` (anticipation), ``centring`` (pull back
       to the centre, 1/s).
     * Switch and balance: ``switch_angle``, ``switch_rate``, ``catch_time`` (length of ``t1``),
@@ -107,7 +106,7 @@ class PendulumMentor:
                  motor_noise: float = 0.02, mistake_rate: float = 0.28,
                  mistake_weights: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0),
                  mistake: str | None = None, kick: float = 0.5, kick_time: float = 0.3, stroke_max: float = 2.0,
-                 pump_gain: float = 1.2, energy_gain: float = 0.4, brake_gain: float = 1.5, brake_margin: float = 0.0,
+                 pump_gain: float = 1.2, energy_gain: float = 0.4, brake_gain: float = 1.5,
                  energy_margin: float = 0.03,
                  lead: float = 0.08, centring: float = 1.0, switch_angle: float = 0.4, switch_rate: float = 2.5,
                  catch_time: float = 0.5, hold_time: float = 5.0, give_up: float = 20.0, fall_angle: float = 0.8,
@@ -128,7 +127,6 @@ class PendulumMentor:
         self.pump_gain = pump_gain
         self.energy_gain = energy_gain
         self.brake_gain = brake_gain
-        self.brake_margin = brake_margin
         self.lead = lead
         self.energy_margin = energy_margin
         self.centring = centring
@@ -275,10 +273,8 @@ class PendulumMentor:
         target = self.energy_margin * G
         if self.mistake_kind == "over_pump":
             target = self._overpump * G
-        d = (target - e) / G                                 # deficit (negative: excess), in g
-        if d < -self.brake_margin:                           # clearly too much: brake firmly
-            d = -self.brake_margin + (self.brake_gain / self.energy_gain) * (d + self.brake_margin)
-        c = min(max(self.energy_gain * d, -1.0), 1.0) * self.pump_gain
+        gain = self.energy_gain if e < target else self.brake_gain
+        c = min(max(gain * (target - e) / G, -1.0), 1.0) * self.pump_gain
         if self.mistake_kind == "wrong_phase" and self.k * self.dt >= self._wrong_from:
             c = -c                                           # moves with the pendulum, not against it
         return -c * math.sin(th + self.lead * om) - self.centring * x

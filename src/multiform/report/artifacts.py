@@ -82,7 +82,6 @@ def write_artifacts(job: Job, model: SkillModel, main: dict[str, Any]) -> None:
     specs = {s.seed: s for s in job.task.evaluation_specs(job.cfg.eval_trials, job.cfg.seed, job.cfg.push_fraction)}
     titles = {"success_trial": "a successful trial of the learned skill",
               "recovery_trial": "pushed while balancing: the added transition backs up to swing-up, then balances again"}
-    videos = []
     for key, d in picks.items():
         if d is None:
             continue
@@ -93,24 +92,6 @@ def write_artifacts(job: Job, model: SkillModel, main: dict[str, Any]) -> None:
         art["plots"][key] = str(plot.relative_to(out))
         if job.cfg.videos and trace.qpos is not None:
             path = out / "videos" / f"{key}.mp4"
-            videos.append((trace, path))
-            art["videos"][key] = {"file": str(path.relative_to(out)), "caption": titles[key]}
-    _write_videos(model, videos, fps, job.cfg.workers)
-    job.metrics["artifacts"] = art
-
-
-def _write_videos(model: SkillModel, videos: list[tuple[Any, Path]], fps: int, workers: int) -> None:
-    """Render and encode the videos, one process each (rendering is most of the report's time)."""
-    if workers <= 1 or len(videos) <= 1:
-        for trace, path in videos:
             write_video(model, trace, path, fps)
-        return
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor
-    with ProcessPoolExecutor(max_workers=min(workers, len(videos)), mp_context=mp.get_context("fork")) as pool:
-        for f in [pool.submit(_video_of, str(model.path), trace, path, fps) for trace, path in videos]:
-            f.result()
-
-
-def _video_of(model_dir: str, trace: Any, path: Path, fps: int) -> None:
-    write_video(SkillModel(model_dir), trace, path, fps)
+            art["videos"][key] = {"file": str(path.relative_to(out)), "caption": titles[key]}
+    job.metrics["artifacts"] = art
