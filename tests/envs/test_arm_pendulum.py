@@ -234,3 +234,17 @@ def test_rgb_array_frames_render_headless():
     assert frame.std() > 10                                        # a scene, not a blank image
     assert ArmPendulumEnv().render() is None
     e.close()
+
+
+def test_frames_without_shadows_show_the_same_scene_less_shaded():
+    frames = {}
+    for shadows in (True, False):
+        e = ArmPendulumEnv(render_mode="rgb_array", width=320, height=240, shadows=shadows)
+        e.reset(seed=0, options={"theta0": 0.0})
+        frames[shadows] = e.render().astype(float)
+        e.close()
+    lit, plain = frames[True], frames[False]
+    assert lit.shape == plain.shape and plain.std() > 10
+    diff = np.abs(lit - plain).max(axis=2)
+    assert 0.0 < (diff > 30).mean() < 0.25                         # the shadows only, not another scene
+    assert plain.mean() > lit.mean()                               # without them the floor is brighter

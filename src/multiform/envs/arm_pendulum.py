@@ -112,7 +112,8 @@ class ArmPendulumEnv(gym.Env):
 
     ``action_mode`` is ``"ee"`` or ``"torque"``; ``gains`` the reference controller's
     (:class:`multiform.envs.osc.Gains`); ``width``/``height``/``camera`` the ``rgb_array`` frames
-    (cameras ``"front"`` and ``"side"``).
+    (cameras ``"front"`` and ``"side"``); ``shadows`` False renders without them (on a CPU renderer
+    they are over half a frame's cost: 37 against 16 ms at 480×360).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
@@ -120,7 +121,7 @@ class ArmPendulumEnv(gym.Env):
     command_names = COMMAND_NAMES
 
     def __init__(self, render_mode: str | None = None, action_mode: str = "ee", gains: Gains | None = None,
-                 width: int = 480, height: int = 360, camera: str = "front"):
+                 width: int = 480, height: int = 360, camera: str = "front", shadows: bool = True):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None")
         if action_mode not in ("ee", "torque"):
@@ -129,6 +130,7 @@ class ArmPendulumEnv(gym.Env):
         self.action_mode = action_mode
         self.gains = gains if gains is not None else DEFAULT_GAINS
         self.width, self.height, self.camera = int(width), int(height), camera
+        self.shadows = bool(shadows)
         self.model = load_model()
         self.data = mujoco.MjData(self.model)
         m = self.model
@@ -332,6 +334,7 @@ class ArmPendulumEnv(gym.Env):
             return None
         if self._renderer is None:
             self._renderer = mujoco.Renderer(self.model, self.height, self.width)
+            self._renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self.shadows
         self._renderer.update_scene(self.data, camera=self.camera)
         return self._renderer.render().copy()
 

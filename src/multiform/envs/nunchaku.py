@@ -125,8 +125,8 @@ class NunchakuEnv(gym.Env):
     """A hand on a 6-DoF base with a magnet palm and a wrist F/T sensor, holding a nunchaku.
 
     ``max_duration`` [s] truncates an episode; ``capture`` [m] is the magnet's reach from the palm;
-    ``width``/``height`` size the ``rgb_array`` frames. ``dt`` is 0.001 s (one control step = one
-    physics step).
+    ``width``/``height`` size the ``rgb_array`` frames, ``shadows`` False renders them without
+    shadows (much cheaper on a CPU renderer). ``dt`` is 0.001 s (one control step = one physics step).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
@@ -134,7 +134,7 @@ class NunchakuEnv(gym.Env):
     command_names = COMMAND_NAMES
 
     def __init__(self, render_mode: str | None = None, max_duration: float = 15.0, capture: float = 0.03,
-                 settle: float = 0.25, width: int = 480, height: int = 360):
+                 settle: float = 0.25, width: int = 480, height: int = 360, shadows: bool = True):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None")
         self.render_mode = render_mode
@@ -142,6 +142,7 @@ class NunchakuEnv(gym.Env):
         self.capture = float(capture)
         self.settle = float(settle)
         self.width, self.height = int(width), int(height)
+        self.shadows = bool(shadows)
         self.model = mujoco.MjModel.from_xml_path(model_path())
         self.data = mujoco.MjData(self.model)
         self.dt = float(self.model.opt.timestep)
@@ -462,6 +463,7 @@ class NunchakuEnv(gym.Env):
             return None
         if self._renderer is None:
             self._renderer = mujoco.Renderer(self.model, self.height, self.width)
+            self._renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self.shadows
             cam = mujoco.MjvCamera()
             cam.type = mujoco.mjtCamera.mjCAMERA_FREE
             cam.azimuth, cam.elevation, cam.distance = 90.0, -5.0, 1.3

@@ -46,8 +46,10 @@ def _trial(model: SkillModel, job: Job, seed: int, push: dict[str, Any] | None, 
 
 
 def write_video(model: SkillModel, trace, path: Path, fps: int) -> None:
+    """The trial as an MP4, rendered without shadows (they more than double a frame's cost on this
+    CPU renderer, and the report's two videos were most of its time)."""
     from .video import render_qpos, write_mp4
-    env = model.make_env(render_mode="rgb_array")
+    env = model.make_env(render_mode="rgb_array", shadows=False)
     try:
         env.reset(seed=trace.seed, options=trace.options)
         frames = render_qpos(env.unwrapped, trace.qpos)
