@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from multiform.adapt.evaluation import Evaluator, Variant, evaluate
 from multiform.job import Job, JobConfig, train_model
 from multiform.model import SkillModel
 from multiform.report.browser import chromium, render
@@ -52,6 +53,25 @@ def test_small_job_leaves_a_complete_run_folder(run):
     videos = list(run.rglob("*.mp4"))
     assert videos and all(v.stat().st_size > 10_000 for v in videos)
     assert list((run / "plots").glob("*.png"))
+
+
+def test_one_pool_runs_several_variants_as_separate_evaluations_do(run):
+    """The job queues the baselines' trials while it practises, on the pool that later runs the final
+    skill's: interleaved in one pool of two processes, each trial comes out as in a one-process
+    evaluation of its variant alone."""
+    from multiform.tasks import pendulum as task
+    specs = task.evaluation_specs(4, SMALL.seed, 0.5)
+    final = Variant("final", str(run / "model"), use_inverse_model=False)
+    as_written = Variant("as written", str(run / "baselines" / "as_written"), use_inverse_model=False)
+    assert not (run / "baselines" / "as_written" / "skill.history.jsonl").exists()   # a snapshot, never revised
+    with Evaluator("pendulum", workers=2) as ev:
+        queued = [(v, ev.submit(v, specs)) for v in (as_written, final)]
+        pooled = [ev.collect(v, f) for v, f in queued]
+    for v, got in zip((as_written, final), pooled):
+        alone = evaluate("pendulum", v, specs, workers=1)
+        strip = lambda rows: [{k: r[k] for k in r if k != "wall"} for r in rows]  # noqa: E731
+        assert strip(got["trials_detail"]) == strip(alone["trials_detail"])
+        assert (got["successes"], got["trials"]) == (alone["successes"], alone["trials"]) and got["name"] == v.name
 
 
 @pytest.mark.skipif(chromium() is None, reason="chromium not installed (make setup installs it)")

@@ -24,7 +24,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from .adapt.evaluation import TrialSpec, Variant, evaluate
+from .adapt.evaluation import Evaluator, TrialSpec, Variant
 from .adapt.practice import Practice, PracticeConfig
 from .demos.dataset import read_dataset, write_dataset
 from .demos.record import demo_push, record_many
@@ -69,8 +69,8 @@ class Job:
         self.timings: dict[str, float] = {}
         self.metrics: dict[str, Any] = {}
 
-    def _bar(self, total: int, desc: str, unit: str = "trial") -> tqdm:
-        return tqdm(total=total, desc=desc, unit=unit,
+    def _bar(self, total: int, desc: str, unit: str = "trial", position: int | None = None) -> tqdm:
+        return tqdm(total=total, desc=desc, unit=unit, position=position,
                     disable=not self.progress, leave=False, dynamic_ncols=True)
 
     def _stage(self, name: str, fn: Callable[[], Any]) -> Any:
@@ -140,19 +140,34 @@ class Job:
         return results
 
     # -- 4. evaluation ----------------------------------------------------------------------------
-    def evaluate(self, model: SkillModel) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-        specs = self.task.evaluation_specs(self.cfg.eval_trials, self.cfg.seed, self.cfg.push_fraction)
+    def _specs(self) -> list[TrialSpec]:
+        return self.task.evaluation_specs(self.cfg.eval_trials, self.cfg.seed, self.cfg.push_fraction)
+
+    def baselines(self, model: SkillModel, ev: Evaluator) -> list[tuple[Variant, list, tqdm]]:
+        """Build the task's ablations and queue their trials (the first ``ablation_trials`` of the
+        evaluation trials) on ``ev``; collected by :meth:`evaluate`."""
+        sub = self._specs()[: self.cfg.ablation_trials]
+        queued = []
+        for i, variant in enumerate(self.task.ablations(model, self.out, self.cfg)):
+            bar = self._bar(len(sub), f"ablation: {variant.name[:30]}", position=1 + i)
+            queued.append((variant, ev.submit(variant, sub, lambda bar=bar: bar.update(1)), bar))
+        return queued
+
+    def evaluate(self, model: SkillModel, ev: Evaluator, queued: list[tuple[Variant, list, tqdm]] | None = None
+                 ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+        """The final skill on the evaluation trials, then the ablations (queued now unless
+        :meth:`baselines` queued them earlier)."""
+        specs = self._specs()
         final = Variant("multiform (definition + demonstration + evaluation, with repair)", str(model.path),
                         notes="the robot's revised net", use_inverse_model=self.cfg.inverse_model)
         with self._bar(len(specs), "evaluating") as bar:
-            main = evaluate(self.task.TASK, final, specs, self.cfg.workers, progress=lambda i, n: bar.update(1))
+            main = ev.collect(final, ev.submit(final, specs, lambda: bar.update(1)))
         self.log(f"  final success rate {100 * main['rate']:.1f} % ({main['successes']}/{main['trials']}, "
                  f"95 % CI {100 * main['low']:.1f}-{100 * main['high']:.1f} %)")
         rows = [main]
-        sub = specs[: self.cfg.ablation_trials]
-        for variant in self.task.ablations(model, self.out, self.cfg):
-            with self._bar(len(sub), f"ablation: {variant.name[:30]}") as bar:
-                r = evaluate(self.task.TASK, variant, sub, self.cfg.workers, progress=lambda i, n: bar.update(1))
+        for variant, futures, bar in queued if queued is not None else self.baselines(model, ev):
+            r = ev.collect(variant, futures)
+            bar.close()
             rows.append(r)
             self.log(f"  {variant.name}: {100 * r['rate']:.1f} % ({r['successes']}/{r['trials']})")
         return main, rows
@@ -163,8 +178,13 @@ class Job:
         self.out.mkdir(parents=True, exist_ok=True)
         demos = self._stage("record", self.record)
         model = self._stage("train", lambda: self.train(demos))
-        scenarios = self._stage("practice", lambda: self.practise(model))
-        main, rows = self._stage("evaluate", lambda: self.evaluate(model))
+        with Evaluator(self.task.TASK, self.cfg.workers) as ev:
+            # baselines built from the trained model alone run while the robot practises, on the
+            # core practice leaves idle; the others once practice has revised the net
+            early = not getattr(self.task, "ABLATIONS_AFTER_PRACTICE", True)
+            queued = self._stage("baselines", lambda: self.baselines(model, ev)) if early else None
+            scenarios = self._stage("practice", lambda: self.practise(model))
+            main, rows = self._stage("evaluate", lambda: self.evaluate(model, ev, queued))
         from .report.artifacts import write_artifacts
         ds = read_dataset(demos)
         ok = sum(e.outcome == "success" for e in ds)

@@ -1,4 +1,4 @@
-"""Evaluation: many seeded trials of one variant of a skill, on several processes, success rates
+"""Evaluation: many seeded trials of the variants of a skill, on several processes, success rates
 with Wilson intervals.
 
 A trial is described by plain data (:class:`TrialSpec`) so it crosses process boundaries; each
@@ -12,7 +12,7 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -43,28 +43,44 @@ class Variant:
 _WORKER: dict[str, Any] = {}
 
 
-def _init(task: str, variant: Variant, env_overrides: dict[str, Any]) -> None:
+def _init(task: str, env_overrides: dict[str, Any]) -> None:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     from threadpoolctl import threadpool_limits
 
-    from ..model import SkillModel
     from ..tasks import get_task
     threadpool_limits(1)
-    model = SkillModel(variant.model_dir)
-    apn = model.history.version(variant.net_version) if variant.net_version is not None else model.apn
-    env = model.make_env(**env_overrides)
-    _WORKER.update(task=get_task(task), model=model, env=env, apn=apn,
-                   executor=model.executor(env, apn, use_inverse_model=variant.use_inverse_model),
-                   judges=model.judges() if variant.use_judges else {})
+    _WORKER.clear()
+    _WORKER.update(task=get_task(task), env_overrides=env_overrides, variants={})
 
 
-def _run(spec: TrialSpec) -> dict[str, Any]:
+def _variant(variant: Variant) -> dict[str, Any]:
+    """The worker's model, env and executor of ``variant``, opened on its first trial."""
+    got = _WORKER["variants"].get(variant)
+    if got is None:
+        from ..model import SkillModel
+        model = SkillModel(variant.model_dir)
+        apn = model.history.version(variant.net_version) if variant.net_version is not None else model.apn
+        env = model.make_env(**_WORKER["env_overrides"])
+        got = _WORKER["variants"][variant] = {
+            "model": model, "env": env,
+            "executor": model.executor(env, apn, use_inverse_model=variant.use_inverse_model),
+            "judges": model.judges() if variant.use_judges else {}}
+    return got
+
+
+def _close() -> None:
+    for v in _WORKER.get("variants", {}).values():
+        v["env"].close()
+    _WORKER.clear()
+
+
+def _run(variant: Variant, spec: TrialSpec) -> dict[str, Any]:
     from .perturb import PushInPlace
-    w = _WORKER
+    w = _variant(variant)
     push = PushInPlace(**spec.push) if spec.push else None
     trace = w["executor"].run(seed=spec.seed, options=spec.options, perturb=push)
     grade = w["model"].grade(trace, f"eval_{spec.seed}", w["judges"]) if w["judges"] else None
-    ok = bool(w["task"].physical_success(trace))
+    ok = bool(_WORKER["task"].physical_success(trace))
     return {"seed": spec.seed, "success": ok, "outcome": trace.outcome,
             "self_success": bool(trace.success and (grade is None or grade.success)),
             "judge_score": None if grade is None else round(grade.score, 4), "duration": round(trace.duration, 3),
@@ -72,31 +88,9 @@ def _run(spec: TrialSpec) -> dict[str, Any]:
             "clips": {c: v["count"] for c, v in trace.clips.items()}}
 
 
-def evaluate(task: str, variant: Variant, trials: Sequence[TrialSpec], workers: int = 2,
-             env_overrides: dict[str, Any] | None = None,
-             progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
-    """Run ``trials`` of ``variant``; returns the rate (Wilson interval), the robot's self-assessed
-    rate, and one record per trial."""
-    env_overrides = dict(env_overrides or {})
-    results: list[dict[str, Any]] = []
-    if workers <= 1:
-        _init(task, variant, env_overrides)
-        for i, spec in enumerate(trials):
-            results.append(_run(spec))
-            if progress:
-                progress(i + 1, len(trials))
-        _WORKER["env"].close()
-        _WORKER.clear()
-    else:
-        ctx = mp.get_context("fork")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init,
-                                 initargs=(task, variant, env_overrides)) as pool:
-            # one trial per task: a trial takes about a second, its result is small, and larger chunks
-            # left a worker idle for a whole chunk at the end of each evaluation
-            for i, res in enumerate(pool.map(_run, trials)):
-                results.append(res)
-                if progress:
-                    progress(i + 1, len(trials))
+def summarise(variant: Variant, results: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """The rate (Wilson interval), the robot's self-assessed rate, and the trial records of ``variant``."""
+    results = list(results)
     ok = sum(r["success"] for r in results)
     self_ok = sum(r["self_success"] for r in results)
     agree = sum(r["success"] == r["self_success"] for r in results)
@@ -105,3 +99,85 @@ def evaluate(task: str, variant: Variant, trials: Sequence[TrialSpec], workers: 
             "self_assessed": rate(self_ok, len(results)), "agreement": agree / max(1, len(results)),
             "pushed": rate(sum(r["success"] for r in pushed), len(pushed)) if pushed else None,
             "trials_detail": results}
+
+
+class Evaluator:
+    """Worker processes that run the trials of any number of variants; trials are queued in the order
+    submitted. A job submits the trials it can before it has everything (the baselines' while the
+    robot still practises, on the core practice leaves idle) and collects them when it needs them.
+
+    Use as a context manager; ``workers`` ≤ 1 runs each trial in this process when collected.
+    """
+
+    def __init__(self, task: str, workers: int = 2, env_overrides: dict[str, Any] | None = None):
+        self.task, self.workers = task, workers
+        self.env_overrides = dict(env_overrides or {})
+        self._pool: ProcessPoolExecutor | None = None
+        if workers > 1:
+            self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("fork"),
+                                             initializer=_init, initargs=(task, self.env_overrides))
+
+    def submit(self, variant: Variant, trials: Sequence[TrialSpec],
+               progress: Callable[[], None] | None = None) -> list[Future | _Deferred]:
+        """Queue ``trials`` of ``variant``; ``progress`` is called (from a pool thread) as each ends.
+        Returns one handle per trial, with ``result()``."""
+        if self._pool is None:
+            return [_Deferred(self, variant, spec, progress) for spec in trials]
+        futures = [self._pool.submit(_run, variant, spec) for spec in trials]
+        if progress is not None:
+            for f in futures:
+                f.add_done_callback(lambda _f: progress())
+        return futures
+
+    def collect(self, variant: Variant, futures: Sequence[Future | _Deferred]) -> dict[str, Any]:
+        """Wait for ``futures`` (from :meth:`submit`) and summarise them."""
+        return summarise(variant, [f.result() for f in futures])
+
+    def _run_here(self, variant: Variant, spec: TrialSpec) -> dict[str, Any]:
+        if not _WORKER:
+            _init(self.task, self.env_overrides)
+        return _run(variant, spec)
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+        elif _WORKER:
+            _close()
+
+    def __enter__(self) -> Evaluator:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+class _Deferred:
+    """A trial of a one-process evaluation: run when its result is asked for."""
+
+    def __init__(self, ev: Evaluator, variant: Variant, spec: TrialSpec, progress: Callable[[], None] | None):
+        self._args = (ev, variant, spec)
+        self._progress = progress
+
+    def result(self) -> dict[str, Any]:
+        ev, variant, spec = self._args
+        out = ev._run_here(variant, spec)
+        if self._progress is not None:
+            self._progress()
+        return out
+
+
+def evaluate(task: str, variant: Variant, trials: Sequence[TrialSpec], workers: int = 2,
+             env_overrides: dict[str, Any] | None = None,
+             progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+    """Run ``trials`` of ``variant``; returns the rate (Wilson interval), the robot's self-assessed
+    rate, and one record per trial."""
+    done = [0]
+
+    def tick() -> None:
+        done[0] += 1
+        if progress:
+            progress(done[0], len(trials))
+
+    with Evaluator(task, workers, env_overrides) as ev:
+        return ev.collect(variant, ev.submit(variant, trials, tick))

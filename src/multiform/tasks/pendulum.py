@@ -140,17 +140,22 @@ def evaluation_specs(n: int, seed: int, push_fraction: float) -> list:
     return specs
 
 
+ABLATIONS_AFTER_PRACTICE = False   # the baselines are copies of the trained model: the job runs them while it practises
+
+
 def ablations(model, out, cfg) -> list:
-    """The baselines on the same seeds and demonstrations."""
+    """The baselines on the same seeds and demonstrations, each in a model directory of its own made
+    from the trained model (laws, judges, inverse model), so practice can revise the model meanwhile."""
     from ..adapt.evaluation import Variant
     from .baselines import demo_only_model, same_laws_model
+    as_written = same_laws_model(model, out / "baselines" / "as_written", SKILL)
     sound = same_laws_model(model, out / "baselines" / "sound_definition", SKILL_SOUND)
     demo_only = demo_only_model(model, out / "baselines" / "demonstration_only", hold_condition="abs(theta) < 0.5",
                                 hold_time=BALANCE_HOLD, seed=cfg.seed)
     inv = cfg.inverse_model
     return [
-        Variant("definition + demonstration, no repair (the mentor's net as written)", str(model.path),
-                net_version=0, use_inverse_model=inv, notes="t1 never holds: no way to balancing"),
+        Variant("definition + demonstration, no repair (the mentor's net as written)", str(as_written.path),
+                use_inverse_model=inv, notes="t1 never holds: no way to balancing"),
         Variant("definition + demonstration, no repair (t1 written workable by hand)", str(sound.path),
                 use_inverse_model=inv, notes="no way back after a push (no t7)"),
         Variant("demonstration only (one GP law on all demonstration data, no net)", str(demo_only.path),
