@@ -8,6 +8,7 @@ main job (:func:`run_demo`) that goes from nothing to a report.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -143,25 +144,23 @@ def evaluation_specs(n: int, seed: int, push_fraction: float) -> list:
 ABLATIONS_AFTER_PRACTICE = False   # the baselines are copies of the trained model: the job runs them while it practises
 
 
-def ablations(model, out, cfg) -> list:
+def ablations(model, out, cfg) -> Iterator:
     """The baselines on the same seeds and demonstrations, each in a model directory of its own made
-    from the trained model (laws, judges, inverse model), so practice can revise the model meanwhile."""
+    from the trained model (laws, judges, inverse model), so practice can revise the model meanwhile.
+    Yielded as each is built, so the job can start one's trials while it fits the next."""
     from ..adapt.evaluation import Variant
     from .baselines import demo_only_model, same_laws_model
+    inv = cfg.inverse_model
     as_written = same_laws_model(model, out / "baselines" / "as_written", SKILL)
+    yield Variant("definition + demonstration, no repair (the mentor's net as written)", str(as_written.path),
+                  use_inverse_model=inv, notes="t1 never holds: no way to balancing")
     sound = same_laws_model(model, out / "baselines" / "sound_definition", SKILL_SOUND)
+    yield Variant("definition + demonstration, no repair (t1 written workable by hand)", str(sound.path),
+                  use_inverse_model=inv, notes="no way back after a push (no t7)")
     demo_only = demo_only_model(model, out / "baselines" / "demonstration_only", hold_condition="abs(theta) < 0.5",
                                 hold_time=BALANCE_HOLD, seed=cfg.seed)
-    inv = cfg.inverse_model
-    return [
-        Variant("definition + demonstration, no repair (the mentor's net as written)", str(as_written.path),
-                use_inverse_model=inv, notes="t1 never holds: no way to balancing"),
-        Variant("definition + demonstration, no repair (t1 written workable by hand)", str(sound.path),
-                use_inverse_model=inv, notes="no way back after a push (no t7)"),
-        Variant("demonstration only (one GP law on all demonstration data, no net)", str(demo_only.path),
-                use_inverse_model=inv, use_judges=False,
-                notes="one law for all phases, failed demonstrations included"),
-    ]
+    yield Variant("demonstration only (one GP law on all demonstration data, no net)", str(demo_only.path),
+                  use_inverse_model=inv, use_judges=False, notes="one law for all phases, failed demonstrations included")
 
 
 def _exercises(model, rng) -> list:
