@@ -6,7 +6,8 @@ Stages, each timed and each resumable (a finished stage's output on disk is reus
 2. **train** the skill model from the mentor's definition: GP laws (successful segments only),
    SVM judges (the mentor's labels), place regions, and the auxiliary inverse model (the robot's
    own babbling);
-3. **practise** through the task's scenarios; constant failure triggers diagnosis and repair;
+3. **practise** through the task's scenarios; constant failure triggers diagnosis and repair (a task
+   whose baselines need only the trained model has their trials run beside practice);
 4. **evaluate** the final skill on randomised trials (Wilson interval), and the ablations on the
    same seeds and demonstrations;
 5. **report**: nets before/after each revision, plots, videos, ``metrics.json``, ``report.html``.
@@ -27,6 +28,7 @@ from tqdm import tqdm
 from .adapt.evaluation import Evaluator, TrialSpec, Variant
 from .adapt.practice import Practice, PracticeConfig
 from .demos.dataset import read_dataset, write_dataset
+from .demos.episode import Episode
 from .demos.record import demo_push, record_many
 from .errors import InvalidInput
 from .io import write_json
@@ -102,7 +104,7 @@ class Job:
         self.log(f"  {len(eps)} demos, mentor succeeded in {ok} ({100 * ok / len(eps):.0f} %)")
         return path
 
-    def _recorded_as_planned(self, episode: Any, seed: int) -> bool:
+    def _recorded_as_planned(self, episode: Episode, seed: int) -> bool:
         options = dict(episode.reset_options)
         pulses = options.pop("disturbances", None)
         return (episode.seed == seed and options == self.task.demo_options(seed)
