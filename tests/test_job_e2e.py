@@ -132,3 +132,25 @@ def test_killed_practice_resumes_from_the_last_saved_revision(run, tmp_path):
     assert (model_dir / "skill.history.jsonl").read_text().splitlines()[:1] == history_before
     assert all(t["net_version"] >= 1 for t in after["trials"][before["trial"]:])
     assert after["done"]
+
+
+def test_inverse_model_trained_beside_the_laws_is_the_one_trained_after_them(run, tmp_path):
+    """The job trains the inverse model in a second process while it fits the laws (its babbling
+    needs none; its exercises wait for them): every array of every fitted piece is the same as
+    when it is trained afterwards in this process."""
+    import numpy as np
+
+    from multiform.tasks import pendulum as task
+    dirs = {}
+    for beside in (False, True):
+        m = SkillModel.create(tmp_path / f"beside_{beside}", task.SKILL, run / "demos.h5", task.ENV_ID,
+                              task.robot_env_kwargs(True))
+        train_model(m, log=lambda s: None, inverse_trainer=task.train_inverse_model, beside=beside)
+        dirs[beside] = m.path
+    files = sorted(p.relative_to(dirs[False]) for p in dirs[False].rglob("*.npz"))
+    assert Path("inverse_model.npz") in files and files == sorted(p.relative_to(dirs[True]) for p in dirs[True].rglob("*.npz"))
+    for rel in files:           # the arrays; the metadata beside them holds fit times
+        with np.load(dirs[False] / rel) as a, np.load(dirs[True] / rel) as b:
+            names = [k for k in a.files if k != "__format__"]
+            assert names and names == [k for k in b.files if k != "__format__"], rel
+            assert all(np.array_equal(a[k], b[k]) for k in names), rel

@@ -235,7 +235,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         inverse = task.train_inverse_model
         model.update_manifest(env_kwargs=task.robot_env_kwargs(True))
     print(f"training {model.apn.name} from {len(ds)} demos into {model.path}")
-    train_model(model, seed=args.seed, inverse_trainer=inverse)
+    train_model(model, seed=args.seed, inverse_trainer=inverse, beside=True)
     print(f"model ready: {model.path}")
     return 0
 

@@ -115,7 +115,7 @@ class Job:
         model = SkillModel.create(self.out / "model", self.task.SKILL, demos, self.task.ENV_ID,
                                   self.task.robot_env_kwargs(self.cfg.inverse_model))
         inverse = self.task.train_inverse_model if self.cfg.inverse_model else None
-        train_model(model, seed=self.cfg.seed, log=self.log, inverse_trainer=inverse)
+        train_model(model, seed=self.cfg.seed, log=self.log, inverse_trainer=inverse, beside=self.cfg.workers > 1)
         return model
 
     # -- 3. practice ------------------------------------------------------------------------------
@@ -222,11 +222,17 @@ class Job:
 
 
 def train_model(model: SkillModel, seed: int = 0, log: Log = print,
-                inverse_trainer: Callable[..., dict[str, Any]] | None = None) -> dict[str, Any]:
+                inverse_trainer: Callable[..., dict[str, Any]] | None = None, beside: bool = False
+                ) -> dict[str, Any]:
     """Fit what a model directory lacks from its demonstrations: every law of the original
     definition (successful segments only), a judge per judged place (mentor labels, via the label
     store), the place regions, and (with ``inverse_trainer``) the auxiliary inverse model. Pieces
-    already on disk are kept, so an interrupted training resumes."""
+    already on disk are kept, so an interrupted training resumes.
+
+    ``inverse_trainer(model, seed=, log=, laws_ready=)`` calls ``laws_ready()`` before it first uses
+    the laws. With ``beside`` it runs in a forked process from the start: its babbling needs no law,
+    so it uses the second core while this one fits the laws, judges and regions. Every fit is
+    seeded and single-threaded, so the model is the same either way."""
     done = model.manifest.get("training", {})
     apn = model.history.version(0)
     eps = model.episodes
@@ -234,6 +240,24 @@ def train_model(model: SkillModel, seed: int = 0, log: Log = print,
     if not len(store):
         store.add_many(mentor_records(apn, eps))
     summary: dict[str, Any] = dict(done)
+    inverse = None
+    if inverse_trainer is not None and ("inverse_model" not in summary
+                                        or not (model.path / "inverse_model.npz").exists()):
+        inverse = _Beside(inverse_trainer, model, seed) if beside else _Here(inverse_trainer, model, seed)
+    try:
+        _fit_definition(model, apn, eps, store, summary, seed, log, inverse)
+        if inverse is not None:
+            summary["inverse_model"] = inverse.result(log)
+    finally:
+        if inverse is not None:
+            inverse.close()
+    model.update_manifest(training=summary)
+    return summary
+
+
+def _fit_definition(model: SkillModel, apn, eps, store: LabelStore, summary: dict[str, Any], seed: int, log: Log,
+                    inverse: _Here | _Beside | None) -> None:
+    """Laws (then ``inverse.laws_ready()``), judges and regions that ``summary`` lacks."""
     laws = summary.setdefault("laws", {})
     for name in apn.laws:
         if name in laws and (model.path / "laws" / f"{name}.npz").exists():
@@ -247,6 +271,8 @@ def train_model(model: SkillModel, seed: int = 0, log: Log = print,
         log(f"  law {name}: n={info['n']} from {info['demos']} demos ({info['mode']}), "
             f"held-out NRMSE {info.get('heldout_nrmse', float('nan')):.3f}, length scales {info['length_scales']}, "
             f"σf {info['signal_std']}, σn {info['noise_std']}")
+    if inverse is not None:
+        inverse.laws_ready()
     judges = summary.setdefault("judges", {})
     for place in judged_places(apn):
         if place in judges and (model.path / "judges" / f"{place}.npz").exists():
@@ -265,11 +291,75 @@ def train_model(model: SkillModel, seed: int = 0, log: Log = print,
         summary["regions"] = info
         log(f"  regions over {', '.join(info['variables'])}: " +
             ", ".join(f"{p} ({n} states)" for p, n in info["places"].items()))
-    if inverse_trainer is not None and ("inverse_model" not in summary
-                                        or not (model.path / "inverse_model.npz").exists()):
-        summary["inverse_model"] = inverse_trainer(model, seed=seed, log=log)
-    model.update_manifest(training=summary)
-    return summary
+
+
+class _Here:
+    """The inverse-model trainer run in this process once the laws are fitted."""
+
+    def __init__(self, trainer: Callable[..., dict[str, Any]], model: SkillModel, seed: int):
+        self._args = trainer, model, seed
+
+    def laws_ready(self) -> None:
+        pass
+
+    def result(self, log: Log) -> dict[str, Any]:
+        trainer, model, seed = self._args
+        return trainer(model, seed=seed, log=log, laws_ready=lambda: None)
+
+    def close(self) -> None:
+        pass
+
+
+class _Beside:
+    """The inverse-model trainer in a forked process, started at once; it waits for
+    :meth:`laws_ready` before it uses the laws. Its log lines are replayed here with its result."""
+
+    def __init__(self, trainer: Callable[..., dict[str, Any]], model: SkillModel, seed: int):
+        import multiprocessing as mp
+        ctx = mp.get_context("fork")
+        self._ready = ctx.Event()
+        self._recv, send = ctx.Pipe(duplex=False)
+        self._proc = ctx.Process(target=_train_beside, args=(trainer, str(model.path), seed, self._ready, send),
+                                 name="inverse-model", daemon=True)
+        self._proc.start()
+        send.close()
+
+    def laws_ready(self) -> None:
+        self._ready.set()
+
+    def result(self, log: Log) -> dict[str, Any]:
+        try:
+            ok, payload, lines = self._recv.recv()
+        except EOFError:
+            self._proc.join()
+            raise RuntimeError(f"the inverse-model process ended without a result (exit code {self._proc.exitcode})"
+                               ) from None
+        for line in lines:
+            log(line)
+        if not ok:
+            raise RuntimeError(f"inverse-model training failed in its process:\n{payload}")
+        return payload
+
+    def close(self) -> None:
+        """Join the process; one still waiting for laws that will not come (this process failed
+        first) is terminated."""
+        self._proc.join(timeout=5.0 if self._ready.is_set() else 0.0)
+        if self._proc.is_alive():
+            self._proc.terminate()
+            self._proc.join()
+        self._recv.close()
+
+
+def _train_beside(trainer: Callable[..., dict[str, Any]], path: str, seed: int, ready: Any, send: Any) -> None:
+    import traceback
+    lines: list[str] = []
+    try:
+        info = trainer(SkillModel(path), seed=seed, log=lines.append, laws_ready=ready.wait)
+        send.send((True, info, lines))
+    except BaseException:
+        send.send((False, traceback.format_exc(), lines))
+    finally:
+        send.close()
 
 
 def load_metrics(out: str | Path) -> dict[str, Any]:

@@ -189,16 +189,21 @@ def _exercises(model, rng) -> list:
     return out
 
 
-def train_inverse_model(model, seed: int = 0, log=print) -> dict[str, Any]:
+def train_inverse_model(model, seed: int = 0, log=print, laws_ready=lambda: None) -> dict[str, Any]:
     """The auxiliary inverse model from the arm's own babbling (:mod:`.arm_babbling`), saved into
-    the model directory, with its tracking error beside the reference controller's."""
+    the model directory, with its tracking error beside the reference controller's. The babbling
+    rounds need no law; ``laws_ready()`` is called before the exercises use the learned laws."""
     import gymnasium as gym
 
     import multiform.envs  # noqa: F401
     from ..envs.osc import ReferenceController
     from .arm_babbling import tracking_error, train_inverse
     make = lambda: gym.make(ENV_ID, action_mode="torque")  # noqa: E731
-    inv, info = train_inverse(make, seed=seed, exercises=lambda rng: _exercises(model, rng), log=log)
+    def exercises(rng):
+        laws_ready()
+        return _exercises(model, rng)
+
+    inv, info = train_inverse(make, seed=seed, exercises=exercises, log=log)
     inv.save(model.path / "inverse_model.npz")
     env = make()
     try:
