@@ -172,7 +172,6 @@ class ArmPendulumEnv(gym.Env):
         self._applied = 0.0
         self.params: dict[str, float] = dict(NOMINAL)
         self._renderer: mujoco.Renderer | None = None
-        self.last_torques = np.zeros(6)
 
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | None = None, options: Mapping[str, Any] | None = None):
@@ -209,7 +208,6 @@ class ArmPendulumEnv(gym.Env):
         d.qvel[self._hinge_v] = omega0
         mujoco.mj_forward(m, d)
         self._applied = 0.0
-        self.last_torques = np.zeros(6)
         obs = self._observe()
         return obs, {"diverged": False, "out_of_workspace": False, "disturbance": 0.0}
 
@@ -283,7 +281,6 @@ class ArmPendulumEnv(gym.Env):
         else:     # np.minimum/np.maximum into ctrl: np.clip's Python wrapper costs more than the clipping
             np.minimum(action, self.torque_limits, out=self._ctrl)
             np.maximum(self._ctrl, self._neg_limits, out=self._ctrl)
-        self.last_torques = self._ctrl.copy()
         t = d.time
         if self._pulses:
             self._disturb(t)
@@ -302,6 +299,11 @@ class ArmPendulumEnv(gym.Env):
         out = (abs(o[2]) > TERMINATE_X or abs(o[5] - c[1]) > TERMINATE_YZ or abs(o[6] - c[2]) > TERMINATE_YZ
                or o[10] * o[10] + o[11] * o[11] + o[12] * o[12] > TERMINATE_TILT ** 2)
         return obs, 0.0, out, False, {"diverged": False, "out_of_workspace": out, "disturbance": self._applied}
+
+    @property
+    def last_torques(self) -> np.ndarray:
+        """The joint torques applied in the last step (zero after a reset), after the actuator limits."""
+        return self._ctrl.copy()
 
     def _disturb(self, t: float) -> None:
         tau = 0.0

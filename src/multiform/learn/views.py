@@ -213,15 +213,20 @@ def stays(apn: APN, tags: Sequence[str]) -> list[tuple[int, int, str]]:
     a catch and the balancing after it. Judges grade stays, so the mentor's tagging and the robot's
     firings (which may split the same stay differently) are graded alike.
     """
-    places = [token_place(apn, str(t)) if t else None for t in tags]
-    out: list[tuple[int, int, str]] = []
-    start = 0
-    for k in range(1, len(places) + 1):
-        if k == len(places) or places[k] != places[start]:
-            if places[start] is not None:
-                out.append((start, k, places[start]))
-            start = k
-    return out
+    if len(tags) == 0:
+        return []
+    # one lookup per distinct tag, runs found on integer codes: demos have ~10^4 samples and few tags
+    uniq, inverse = np.unique(np.asarray(tags, dtype=str), return_inverse=True)
+    names: list[str] = []
+    code_of_tag = []
+    for t in uniq.tolist():
+        p = token_place(apn, t) if t else None
+        if p is not None and p not in names:
+            names.append(p)
+        code_of_tag.append(-1 if p is None else names.index(p))
+    codes = np.asarray(code_of_tag)[inverse.reshape(-1)]
+    bounds = np.concatenate([[0], np.flatnonzero(codes[1:] != codes[:-1]) + 1, [len(codes)]]).tolist()
+    return [(s, e, names[c]) for s, e, c in zip(bounds[:-1], bounds[1:], codes[bounds[:-1]].tolist()) if c >= 0]
 
 
 def place_episode(apn: APN, ep: Episode) -> Episode:
