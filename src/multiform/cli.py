@@ -22,6 +22,7 @@ from pathlib import Path  # noqa: E402
 from .errors import InvalidInput  # noqa: E402
 
 EXIT_BAD_INPUT = 2
+EXIT_BROKEN_PIPE = 141         # as a shell reports a process ended by SIGPIPE
 
 
 def _print_problems(exc: InvalidInput) -> None:
@@ -432,13 +433,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args.func(args) or 0)
+        code = int(args.func(args) or 0)
+        sys.stdout.flush()               # a closed pipe shows here, not as a traceback at exit
+        return code
     except InvalidInput as exc:
         _print_problems(exc)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:              # `multiform ... | head`: the reader left, nothing is wrong
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
 
 
 if __name__ == "__main__":

@@ -40,3 +40,20 @@ def test_draw_and_diff_and_export(tmp_path, capsys):
     assert "t7" in (tmp_path / "back.yaml").read_text()
     assert main(["net", "history", str(skill)]) == 0
     assert "version 1: add_transition t7" in capsys.readouterr().out
+
+
+def test_output_into_a_closed_pipe_ends_quietly():
+    """`multiform check pendulum | head -0`: the reader has gone before anything is written; the
+    command ends with the shell's SIGPIPE status, without a traceback."""
+    import os
+    import subprocess
+    import sys
+    read, write = os.pipe()
+    os.close(read)
+    try:
+        proc = subprocess.run([sys.executable, "-m", "multiform.cli", "check", "pendulum"], stdout=write,
+                              stderr=subprocess.PIPE, text=True, timeout=60)
+    finally:
+        os.close(write)
+    assert proc.returncode == 141, proc.stderr
+    assert "Traceback" not in proc.stderr and "BrokenPipeError" not in proc.stderr
