@@ -178,9 +178,12 @@ class SkillModel:
         inverse = self.inverse_model() if use_inverse_model else None
         return Executor(apn, env, self.laws(), self.conditions(), inverse, net_version=self.version)
 
-    def grade(self, trace: Trace, source: str, judges: Mapping[str, Judge] | None = None) -> TrialGrade:
-        """The judges' grades of a trial: every sub-procedure and the whole trial."""
-        apn = self.apn
+    def grade(self, trace: Trace, source: str, judges: Mapping[str, Judge] | None = None,
+              apn: APN | None = None) -> TrialGrade:
+        """The judges' grades of a trial: every sub-procedure and the whole trial. ``apn`` is the
+        net that ran it (default: the latest, read from disk; a caller grading many trials of one
+        net passes it)."""
+        apn = self.apn if apn is None else apn
         judges = self.judges() if judges is None else judges
         if trace.outcome == "diverged" or not judges:
             return TrialGrade(score=0.0)

@@ -79,7 +79,8 @@ def _run(variant: Variant, spec: TrialSpec) -> dict[str, Any]:
     w = _variant(variant)
     push = PushInPlace(**spec.push) if spec.push else None
     trace = w["executor"].run(seed=spec.seed, options=spec.options, perturb=push)
-    grade = w["model"].grade(trace, f"eval_{spec.seed}", w["judges"]) if w["judges"] else None
+    grade = (w["model"].grade(trace, f"eval_{spec.seed}", w["judges"], apn=w["executor"].apn)
+             if w["judges"] else None)
     ok = bool(_WORKER["task"].physical_success(trace))
     return {"seed": spec.seed, "success": ok, "outcome": trace.outcome,
             "self_success": bool(trace.success and (grade is None or grade.success)),

@@ -145,7 +145,7 @@ class Practice:
             t0 = time.perf_counter()
             trace = executor.run(seed=cfg.trial_seed(k), options=self.options(k),
                                  perturb=self.perturb(k) if self.perturb else None)
-            grade = self.model.grade(trace, f"{self.name}_{k}", judges) if judges else None
+            grade = self.model.grade(trace, f"{self.name}_{k}", judges, apn=executor.apn) if judges else None
             success = trace.success and (grade is None or grade.success)
             summary = {"trial": k, "seed": cfg.trial_seed(k), "net_version": version, "outcome": trace.outcome,
                        "success": bool(success), "judge_score": None if grade is None else round(grade.score, 4),
