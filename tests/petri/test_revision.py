@@ -43,7 +43,7 @@ def test_set_condition_checks_variables():
     apn = load_skill("pendulum_strict")
     new, rev = set_condition(apn, "t1", "abs(theta) < 0.2 and abs(omega) < 1.5", "never fired")
     assert str(new.transition("t1").condition) == "abs(theta) < 0.2 and abs(omega) < 1.5"
-    assert rev.before == {"condition": "theta == 0 and omega == 0"}
+    assert rev.before == {"condition": "theta == 0 and omega == 0 and x == 0"}
     with pytest.raises(InvalidInput, match="undeclared variable 'phi'"):
         set_condition(apn, "t1", "phi < 1", "x")
     new, _ = set_condition(apn, "t1", {"model": "t1_learned"}, "relearned")

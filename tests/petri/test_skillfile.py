@@ -64,7 +64,7 @@ def test_pendulum_structure_matches_paper_fig5():
     assert dict(t["t6"].outputs) == {"done": 1}
     assert set(t["t4"].outputs) == set(t["t5"].outputs) == {"fail"}
     strict = load_skill("pendulum_strict")
-    assert strict.transition("t1").condition.guard.text == "theta == 0 and omega == 0"
+    assert strict.transition("t1").condition.guard.text == "theta == 0 and omega == 0 and x == 0"
 
 
 def test_incidence_matrix():
