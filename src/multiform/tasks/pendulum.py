@@ -116,7 +116,7 @@ def robot_env_kwargs(inverse_model: bool) -> dict[str, Any]:
 def scenarios() -> list[dict[str, Any]]:
     """The paper's two practice scenarios, in order (the second starts from the first's net)."""
     return [
-        {"name": "a_strict", "title": "(a) the mentor's over-strict t1: exactly upright, exactly at rest",
+        {"name": "a_strict", "title": "(a) the mentor's over-strict t1: exactly upright, exactly at rest, hand exactly centred",
          "options": trial_options, "config": {"failures_in_a_row": 3, "success_streak": 5}},
         {"name": "b_push", "title": "(b) pushes while balancing that the balance law cannot absorb",
          "options": trial_options, "perturb": lambda k: _push_in_place(1_000 + k),
