@@ -47,6 +47,7 @@ def test_small_job_leaves_a_complete_run_folder(run):
     names = [row["name"] for row in m["ablation"]]
     assert len(names) == 4 and names[0].startswith("multiform")
     assert {"record_s", "train_s", "practice_s", "evaluate_s", "total_s"} <= set(m["timings"])
+    assert 1.0 < m["timings"]["closed_loop_us_per_sim_ms"] < 1000.0       # faster than real time, not free
     for rel in ("nets/net_v0.svg", "report.html"):
         assert (run / rel).stat().st_size > 500, rel
     assert len(list((run / "nets").glob("net_v*.svg"))) == 1 + len(m["revisions"])

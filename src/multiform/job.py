@@ -16,6 +16,7 @@ Stages, each timed and each resumable (a finished stage's output on disk is reus
 from __future__ import annotations
 
 import json
+import statistics
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
@@ -210,6 +211,11 @@ class Job:
                  self_assessed=main["self_assessed"], agreement_with_physical_check=main["agreement"],
                  pushed=main["pushed"], target_success_rate=self.task.TARGET_SUCCESS_RATE,
                  ablation=[{k: r[k] for k in ("name", "notes", "successes", "trials", "rate", "low", "high")} for r in rows])
+        # the host's speed beside the stage times: the same job takes 20 % longer in a busy hour
+        # of a shared machine, and this median says whether a slow run was a slow host
+        per_ms = [1e3 * t["wall"] / t["duration"] for r in rows for t in r["trials_detail"] if t["duration"] > 0]
+        if per_ms:
+            self.timings["closed_loop_us_per_sim_ms"] = round(float(statistics.median(per_ms)), 1)
         self._stage("report", lambda: write_artifacts(self, model, main))
         self.timings["total_s"] = round(time.perf_counter() - t0, 1)
         m["timings"] = dict(self.timings)
