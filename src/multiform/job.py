@@ -18,7 +18,7 @@ from __future__ import annotations
 import json
 import statistics
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from types import ModuleType
@@ -36,6 +36,7 @@ from .io import write_json
 from .learn.labels import LabelStore
 from .learn.training import fit_judge, fit_law, fit_regions, judged_places, mentor_records
 from .model import SkillModel
+from .petri.net import APN
 from .stats import rate
 from .tasks import get_task
 
@@ -261,8 +262,8 @@ def train_model(model: SkillModel, seed: int = 0, log: Log = print,
     return summary
 
 
-def _fit_definition(model: SkillModel, apn, eps, store: LabelStore, summary: dict[str, Any], seed: int, log: Log,
-                    inverse: _Here | _Beside | None) -> None:
+def _fit_definition(model: SkillModel, apn: APN, eps: Sequence[Episode], store: LabelStore, summary: dict[str, Any],
+                    seed: int, log: Log, inverse: _Here | _Beside | None) -> None:
     """Laws (then ``inverse.laws_ready()``), judges and regions that ``summary`` lacks."""
     laws = summary.setdefault("laws", {})
     for name in apn.laws:
@@ -318,7 +319,8 @@ class _Here:
 
 class _Beside:
     """The inverse-model trainer in a forked process, started at once; it waits for
-    :meth:`laws_ready` before it uses the laws. Its log lines are replayed here with its result."""
+    :meth:`laws_ready` before it uses the laws. Its log lines are replayed here with its result.
+    The process is a daemon (it ends with this one), so the trainer may not start processes itself."""
 
     def __init__(self, trainer: Callable[..., dict[str, Any]], model: SkillModel, seed: int):
         import multiprocessing as mp
