@@ -247,24 +247,26 @@ def train_model(model: SkillModel, seed: int = 0, log: Log = print,
     if not len(store):
         store.add_many(mentor_records(apn, eps))
     summary: dict[str, Any] = dict(done)
-    inverse = None
-    if inverse_trainer is not None and ("inverse_model" not in summary
-                                        or not (model.path / "inverse_model.npz").exists()):
-        inverse = _Beside(inverse_trainer, model, seed) if beside else _Here(inverse_trainer, model, seed)
+    need_inverse = inverse_trainer is not None and ("inverse_model" not in summary
+                                                    or not (model.path / "inverse_model.npz").exists())
+    other = _Beside(inverse_trainer, model, seed) if need_inverse and beside else None
     try:
-        _fit_definition(model, apn, eps, store, summary, seed, log, inverse)
-        if inverse is not None:
-            summary["inverse_model"] = inverse.result(log)
+        _fit_definition(model, apn, eps, store, summary, seed, log,
+                        laws_ready=other.laws_ready if other is not None else lambda: None)
+        if other is not None:
+            summary["inverse_model"] = other.result(log)
+        elif need_inverse:
+            summary["inverse_model"] = inverse_trainer(model, seed=seed, log=log, laws_ready=lambda: None)
     finally:
-        if inverse is not None:
-            inverse.close()
+        if other is not None:
+            other.close()
     model.update_manifest(training=summary)
     return summary
 
 
 def _fit_definition(model: SkillModel, apn: APN, eps: Sequence[Episode], store: LabelStore, summary: dict[str, Any],
-                    seed: int, log: Log, inverse: _Here | _Beside | None) -> None:
-    """Laws (then ``inverse.laws_ready()``), judges and regions that ``summary`` lacks."""
+                    seed: int, log: Log, laws_ready: Callable[[], None]) -> None:
+    """Laws (then ``laws_ready()``), judges and regions that ``summary`` lacks."""
     laws = summary.setdefault("laws", {})
     for name in apn.laws:
         if name in laws and (model.path / "laws" / f"{name}.npz").exists():
@@ -278,8 +280,7 @@ def _fit_definition(model: SkillModel, apn: APN, eps: Sequence[Episode], store: 
         log(f"  law {name}: n={info['n']} from {info['demos']} demos ({info['mode']}), "
             f"held-out NRMSE {info.get('heldout_nrmse', float('nan')):.3f}, length scales {info['length_scales']}, "
             f"σf {info['signal_std']}, σn {info['noise_std']}")
-    if inverse is not None:
-        inverse.laws_ready()
+    laws_ready()
     judges = summary.setdefault("judges", {})
     for place in judged_places(apn):
         if place in judges and (model.path / "judges" / f"{place}.npz").exists():
@@ -298,23 +299,6 @@ def _fit_definition(model: SkillModel, apn: APN, eps: Sequence[Episode], store: 
         summary["regions"] = info
         log(f"  regions over {', '.join(info['variables'])}: " +
             ", ".join(f"{p} ({n} states)" for p, n in info["places"].items()))
-
-
-class _Here:
-    """The inverse-model trainer run in this process once the laws are fitted."""
-
-    def __init__(self, trainer: Callable[..., dict[str, Any]], model: SkillModel, seed: int):
-        self._args = trainer, model, seed
-
-    def laws_ready(self) -> None:
-        pass
-
-    def result(self, log: Log) -> dict[str, Any]:
-        trainer, model, seed = self._args
-        return trainer(model, seed=seed, log=log, laws_ready=lambda: None)
-
-    def close(self) -> None:
-        pass
 
 
 class _Beside:
