@@ -1,4 +1,4 @@
-"""An SVM's decision function as plain numpy arrays, fast enough for the 1 kHz control path.
+"""An SVM's decision function as plain arrays, fast enough for the 1 kHz control path.
 
 A fitted scikit-learn ``SVC`` (binary) or ``OneClassSVM`` — optionally behind a ``StandardScaler``
 — is compiled to its support vectors, dual coefficients, intercept and kernel parameters::
@@ -8,8 +8,9 @@ A fitted scikit-learn ``SVC`` (binary) or ``OneClassSVM`` — optionally behind 
 with K one of ``rbf`` exp(-g|u-v|²), ``poly`` (g u·v + c0)^deg, ``linear`` u·v and ``sigmoid``
 tanh(g u·v + c0), exactly as libsvm defines them. For a binary SVC, f > 0 means ``classes_[1]``;
 for a OneClassSVM, f > 0 means inside. Why our own code: scikit-learn's ``decision_function`` costs
-≈ 120 µs per single sample (input validation), this costs a few µs (``benchmarks/bench_condition.py``),
-and a saved model is arrays + JSON, never a pickle.
+≈ 120 µs per single sample (input validation); the single-sample path here is one compiled loop
+(:mod:`.compiled`, about 1.5 µs for 87 support vectors, ``benchmarks/bench_condition.py``), rows go
+through numpy; and a saved model is arrays + JSON, never a pickle.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import numpy as np
 
 from ..errors import InvalidInput
 from ..io import load_npz, save_npz
+from .compiled import KERNEL_CODES, svm_decision_one
 
 KERNELS = ("rbf", "poly", "linear", "sigmoid")
 KIND = "fast_svm"
@@ -97,14 +99,11 @@ class FastDecision:
                    coef0=float(estimator.coef0), degree=int(estimator.degree), mean=mean, scale=scale)
 
     def _prepare(self) -> None:
-        sv, g = self.support_vectors, self.gamma
+        sv = self.support_vectors
         self._inv_scale = 1.0 / self.scale
-        self._buf = np.empty(sv.shape[0])
         self._sv_sq = np.einsum("ij,ij->i", sv, sv)
-        self._neg_g_sv_sq = -g * self._sv_sq
-        self._two_g_sv = 2.0 * g * sv
-        self._g_sv = g * sv
         self._w = self.dual_coef @ sv              # linear kernel collapses to one weight vector
+        self._kernel_code = KERNEL_CODES[self.kernel]
 
     # -- evaluation -----------------------------------------------------------------------------
     @property
@@ -116,26 +115,10 @@ class FastDecision:
         return int(self.support_vectors.shape[0])
 
     def decision_one(self, x: np.ndarray) -> float:
-        """f(x) for one sample (1-D float array); the control-rate path."""
-        u = (x - self.mean) * self._inv_scale
-        buf = self._buf
-        k = self.kernel
-        if k == "rbf":
-            np.dot(self._two_g_sv, u, out=buf)
-            np.add(buf, self._neg_g_sv_sq, out=buf)
-            np.subtract(buf, self.gamma * u.dot(u), out=buf)
-            np.exp(buf, out=buf)
-        elif k == "linear":
-            return float(self._w.dot(u)) + self.intercept
-        elif k == "poly":
-            np.dot(self._g_sv, u, out=buf)
-            np.add(buf, self.coef0, out=buf)
-            np.power(buf, self.degree, out=buf)
-        else:
-            np.dot(self._g_sv, u, out=buf)
-            np.add(buf, self.coef0, out=buf)
-            np.tanh(buf, out=buf)
-        return float(self.dual_coef.dot(buf)) + self.intercept
+        """f(x) for one sample (1-D float64 array); the control-rate path (compiled, see
+        :mod:`multiform.learn.compiled`)."""
+        return svm_decision_one(x, self.mean, self._inv_scale, self.support_vectors, self.dual_coef, self._w,
+                                self.intercept, self._kernel_code, self.gamma, self.coef0, self.degree)
 
     def decision(self, X: np.ndarray) -> np.ndarray | float:
         """f for every row of ``X`` (n, d); a 1-D ``x`` gives a float."""

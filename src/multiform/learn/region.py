@@ -35,6 +35,7 @@ from threadpoolctl import threadpool_limits
 
 from ..errors import InvalidInput
 from ..io import load_npz, save_npz
+from .compiled import mixture_logits_one
 from .features import as_str_list, check_names
 
 KIND = "place_regions"
@@ -169,8 +170,8 @@ class PlaceRegions(BaseEstimator):
 
     def _prepare(self) -> None:
         """Stack every place's mixture into one affine map from the raw state, so scoring all places
-        costs a handful of numpy calls: y = x W - c; a = const - (y*y) S; ℓ_p = logsumexp over p's
-        components (via e @ G); z_p = (ℓ_p - τ_p) · slope_p, the calibrated logit (score = σ(z))."""
+        is one pass: y = x W - c; a = const - (y*y) S; ℓ_p = logsumexp over p's components;
+        z_p = (ℓ_p - τ_p) · slope_p, the calibrated logit (score = σ(z))."""
         self.n_features_in_ = d = len(self.mean_)
         inv = 1.0 / self.scale_
         Ws, cs, consts, groups = [], [], [], []
@@ -189,9 +190,8 @@ class PlaceRegions(BaseEstimator):
         self._const = np.concatenate(consts)
         K = len(self._const)
         self._S = np.kron(np.eye(K), np.ones((d, 1)))                         # (K d, K) sums each block
-        self._G = np.zeros((K, len(self.places_)))
-        self._G[np.arange(K), groups] = 1.0
         self._groups = [np.flatnonzero(np.array(groups) == i) for i in range(len(self.places_))]
+        self._component_place = np.array(groups, dtype=np.int64)
         self._tau = np.array([self.densities_[p].tau for p in self.places_])
         self._slope = np.array([self.densities_[p].slope for p in self.places_])
         self._memo_key: bytes | None = None
@@ -209,19 +209,8 @@ class PlaceRegions(BaseEstimator):
         key = x.tobytes()
         if key == self._memo_key:
             return self._memo
-        y = x @ self._W
-        y -= self._c
-        y *= y
-        a = self._const - y @ self._S
-        # every a ≤ max(const), so exp(a - max(const)) cannot overflow; a place whose components all
-        # underflow gets ℓ ≈ max(const) - 690: far outside it, as it should be
-        a -= self._amax
-        np.exp(a, out=a)
-        s = a @ self._G
-        s += 1e-300
-        np.log(s, out=s)
-        s -= self._tau_shifted
-        s *= self._slope
+        s = mixture_logits_one(x, self._W, self._c, self._const, self._component_place, self._amax,
+                               self._tau_shifted, self._slope)
         self._memo_key, self._memo = key, s
         return s
 
