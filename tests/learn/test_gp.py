@@ -15,6 +15,7 @@ from sklearn.gaussian_process.kernels import ConstantKernel as C
 
 from multiform.errors import InvalidInput
 from multiform.io import save_npz
+from multiform.learn.compiled import gp_mean_one
 from multiform.learn.gp import FAST_EXP_TOL, KIND, VERSION, GPLaw, neg_log_marginal_likelihood
 
 THETA5 = np.array([np.log(1.2), np.log(0.8), np.log(2.0), np.log(1.5), np.log(3.0), np.log(1.3), np.log(0.05)])
@@ -150,6 +151,22 @@ def test_linear_mean_extrapolates_where_a_constant_mean_reverts():
     np.testing.assert_allclose(lin.predict(near), -8.0 * near[:, 0] - near[:, 1], atol=0.05)
     with pytest.raises(ValueError, match="mean"):
         GPLaw(mean="quadratic").fit(X, y)
+
+
+@pytest.mark.parametrize("mean", ["constant", "linear"])
+def test_affine_plan_adds_a_linear_map_of_other_features(mean):
+    """One compiled call gives a GP's mean plus ``f·W + b`` (the inverse model's residual GP and
+    linear part), whether the GP's own mean is constant or linear."""
+    X, Y = data(300)
+    g = GPLaw(mean=mean).fit(X, Y, theta=THETA5)
+    rng = np.random.default_rng(4)
+    W, b = rng.normal(size=(7, 2)), rng.normal(size=2)
+    plan, with_x = g.affine_plan(W, b)
+    assert with_x == (mean == "linear")
+    for x in rng.uniform(-2.5, 2.5, (20, 5)):
+        f = rng.normal(size=7)
+        got = gp_mean_one(x, np.r_[x, f] if with_x else f, *plan)
+        np.testing.assert_allclose(got, g.predict_one(x) + f @ W + b, rtol=1e-12, atol=1e-12)
 
 
 def test_modes_follow_thresholds():

@@ -76,3 +76,37 @@ def mixture_logits_one(x: np.ndarray, W: np.ndarray, c: np.ndarray, const: np.nd
     for p in range(s.shape[0]):
         s[p] = (math.log(s[p] + 1e-300) - tau_shifted[p]) * slope[p]
     return s
+
+
+@njit(cache=True, nogil=True)
+def gp_mean_one(x: np.ndarray, xl: np.ndarray, w: np.ndarray, b: np.ndarray, Zaug: np.ndarray, W: np.ndarray,
+                lb: np.ndarray, lw: np.ndarray, fast: bool) -> np.ndarray:
+    """A GP's predictive mean at one raw state plus an affine map (see
+    :meth:`multiform.learn.gp.GPLaw.predict_one`): ``u = x·w − b``, exponents
+    ``Zaug · [u, 1, −½|u|²]`` (``Zaug`` column-major: each of its d + 2 columns is one pass over
+    contiguous memory), kernel values their ``exp`` (float32 with ``fast``), then
+    ``k·W + lb + xl·lw``. ``xl`` is the affine map's input: ``x`` for a linear mean, empty for a
+    constant one, or other features of the same state."""
+    d = x.shape[0]
+    m, q = W.shape
+    h = 0.0
+    buf = np.empty(m)
+    for j in range(m):
+        buf[j] = Zaug[j, d]
+    for i in range(d):
+        ui = x[i] * w[i] - b[i]
+        h += ui * ui
+        for j in range(m):
+            buf[j] += Zaug[j, i] * ui
+    h *= -0.5
+    r = lb.copy()
+    for j in range(m):
+        a = buf[j] + Zaug[j, d + 1] * h
+        k = np.float64(math.exp(np.float32(a))) if fast else math.exp(a)
+        for o in range(q):
+            r[o] += k * W[j, o]
+    for i in range(xl.shape[0]):
+        xi = xl[i]
+        for o in range(q):
+            r[o] += xi * lw[i, o]
+    return r

@@ -44,15 +44,15 @@ the variance ``k(x*, x*) − k*ᵀ K⁻¹ k*`` (eq. 6), with ``K`` the kernel ma
 Variances are those of the latent law f(x) (eq. 6), in output units, without the observation noise
 (``noise_`` × ``y_scale_`` is that noise's standard deviation).
 
-The one-state path (:meth:`predict_one`, :meth:`predict_one_var`) is plain numpy on precomputed
-arrays: the input is mapped into the scaled space where the kernel is one ``exp`` of a squared
-distance expanded as ``z·u − ½|z|² − ½|u|²``; no validation, preallocated buffers. The exponents
-come from a float64 gemv (the ``−½|z|²`` terms reach 10³–10⁴ for short length scales, too large
-for float32); with ``fast_exp`` the mean then takes their ``exp`` in float32 (numpy's SIMD loop,
-≈ 4× cheaper than the scalar float64 one on AVX2) and sums in float64. Each kernel value is off by
-at most ``(|a| + 8)·2⁻²⁴`` relatively, but a low-noise posterior's weights cancel (|α| up to 10⁴–10⁶
-for FITC on 50,000 points), so at ``_prepare`` the law measures the float32 mean's deviation at
-1,250 probe states around its points and keeps float64 unless it is ≤ ``FAST_EXP_PROBE_TOL``
+The one-state mean (:meth:`predict_one`) is one compiled call (:mod:`multiform.learn.compiled`:
+numpy spends more on its per-call overhead than on the arithmetic of 300 points): the input is
+mapped into the scaled space where the kernel is one ``exp`` of a squared distance expanded as
+``z·u − ½|z|² − ½|u|²``; no validation. The exponents are float64
+(the ``−½|z|²`` terms reach 10³–10⁴ for short length scales, too large for float32); with
+``fast_exp`` the mean then takes their ``exp`` in float32 and sums in float64. Each kernel value is
+off by at most ``(|a| + 8)·2⁻²⁴`` relatively, but a low-noise posterior's weights cancel (|α| up to
+10⁴–10⁶ for FITC on 50,000 points), so at ``_prepare`` the law measures the float32 mean's deviation
+at 1,250 probe states around its points and keeps float64 unless it is ≤ ``FAST_EXP_PROBE_TOL``
 (2e-4 of ``y_scale_``); tests hold the admitted path to ``FAST_EXP_TOL`` (1e-3) at any state.
 The variance's kernel vector is always float64 (:meth:`predict_one_var`).
 """
@@ -72,6 +72,7 @@ from sklearn.utils.validation import check_is_fitted, check_X_y
 
 from ..errors import InvalidInput, Problem
 from ..io import load_npz, save_npz
+from .compiled import gp_mean_one
 from .sparse_gp import SPARSE_METHODS, cholesky_jitter, se_kernel, select_inducing, sparse_posterior
 
 KIND = "gp_law"
@@ -82,9 +83,8 @@ _BATCH = 1024
 _PROBE = 300
 _LOG_2PI = float(np.log(2.0 * np.pi))
 _mul, _sub, _exp, _dot = np.multiply, np.subtract, np.exp, np.dot
-_F32 = np.float32
 # Bound on the relative error of one kernel value on the float32 exponential path: the exponent
-# a is rounded to float32 (|a|·2⁻²⁴) and numpy's SIMD float32 exp is within 4 ulp (8·2⁻²⁴) when
+# a is rounded to float32 (|a|·2⁻²⁴) and a float32 exp (libm's expf) is within 4 ulp (8·2⁻²⁴) when
 # the result is a normal float; below exp(−87) the absolute error is < 2⁻¹²⁶ (flush to zero or
 # subnormal), negligible against any law's output. Relative error of k ≤ (|a| + FAST_EXP_ULP)·2⁻²⁴.
 FAST_EXP_EPS = 2.0 ** -24
@@ -322,32 +322,37 @@ class GPLaw(BaseEstimator, RegressorMixin):
             self._sbuf = np.empty(self._sZ.shape[0])
         self._sparse_mean = self.mode_ == "sparse"
         self._exact_var = self.var_mode_ == "exact"
-        self.fast_exp_error_ = self._fast_exp_error() if getattr(self, "fast_exp", True) else None
-        self._fast = self.fast_exp_error_ is not None and self.fast_exp_error_ <= FAST_EXP_PROBE_TOL
+        self._mZaug, self._mW = (self._sZaug, self._sB) if self._sparse_mean else (self._Zaug, self._A)
         # The mean function in raw units: y_mean for a constant mean, x·W + b for a linear one.
         B = self.linear_coef_
         self._linear = bool(np.any(B[:-1]))
         self._lw = np.ascontiguousarray(B[:-1] / self.x_scale_[:, None] * self.y_scale_)
-        self._lb = (B[-1] - (self.x_mean_ / self.x_scale_) @ B[:-1]) * self.y_scale_ + self.y_mean_
+        self._lb = np.ascontiguousarray(np.atleast_1d((B[-1] - (self.x_mean_ / self.x_scale_) @ B[:-1])
+                                                      * self.y_scale_ + self.y_mean_), dtype=np.float64)
+        self._no_affine = np.empty(0)
+        self._mean_lw = self._lw if self._linear else np.zeros((0, self._mW.shape[1]))
+        self.fast_exp_error_ = self._fast_exp_error() if getattr(self, "fast_exp", True) else None
+        self._fast = self.fast_exp_error_ is not None and self.fast_exp_error_ <= FAST_EXP_PROBE_TOL
 
     def _fast_exp_error(self) -> float:
         """Largest deviation of the float32-exponential mean from the float64 one, relative to
         ``y_scale_``, measured at probe states: up to 250 points of the set and the same moved by
         0.25, 0.5, 1 and 2 length scales in random directions. Partial support is where the large
         weights of a low-noise posterior cancel; far from the data every kernel value, and with it
-        the error, vanishes. Same numpy float32 ``exp`` as the one-state path."""
-        Z, W = (self._sZ, self._sB) if self.mode_ == "sparse" else (self._Zm, self._A)
+        the error, vanishes. Measured through the compiled one-state path itself."""
+        Z = self._sZ if self.mode_ == "sparse" else self._Zm
         rng = np.random.default_rng(0)
         base = Z[rng.permutation(len(Z))[:250]]
         probes = [base]
         for r in (0.25, 0.5, 1.0, 2.0):
             step = rng.normal(size=base.shape)
             probes.append(base + r * step / np.linalg.norm(step, axis=1, keepdims=True))
-        P = np.concatenate(probes)
-        D = np.einsum("ij,ij->i", P, P)[:, None] + np.einsum("ij,ij->i", Z, Z)[None, :] - 2.0 * (P @ Z.T)
-        a = np.log(self._sf2) - 0.5 * np.maximum(D, 0.0)
-        k32 = np.exp(a, dtype=_F32, casting="same_kind").astype(np.float64)
-        err = np.abs((k32 - np.exp(a)) @ W)
+        X = (np.concatenate(probes) + self._b) / self._w           # back to raw states
+        lw0 = np.zeros((0, self._mW.shape[1]))
+        err = np.zeros(self._mW.shape[1])
+        for x in X:
+            args = (x, self._no_affine, self._w, self._b, self._mZaug, self._mW, self._lb, lw0)
+            np.maximum(err, np.abs(gp_mean_one(*args, True) - gp_mean_one(*args, False)), out=err)
         return float(np.max(err / self.y_scale_))
 
     def _load_state(self, x: np.ndarray) -> np.ndarray:
@@ -361,25 +366,23 @@ class GPLaw(BaseEstimator, RegressorMixin):
         """Predictive mean (eq. 5) of every output for one state ``x`` (1-D float64 array of
         ``n_features_in_``); returns a new float64 array of ``n_outputs_``.
 
-        The control-rate path: no validation, shared buffers (not thread-safe). With ``fast_exp``
-        the kernel exponentials are float32 (module docstring: relative error of the mean ≲ 1e-6
-        of the output scale); everything else is float64.
+        The control-rate path: no validation, one compiled call
+        (:func:`multiform.learn.compiled.gp_mean_one`). With ``fast_exp`` the kernel exponentials
+        are float32 (module docstring: relative error of the mean ≲ 1e-6 of the output scale);
+        everything else is float64.
         """
-        ua = self._load_state(x)
-        if self._sparse_mean:
-            buf, Zaug, W = self._sbuf, self._sZaug, self._sB
-        else:
-            buf, Zaug, W = self._buf, self._Zaug, self._A
-        _dot(Zaug, ua, buf)
-        if self._fast:
-            _exp(buf, buf, dtype=_F32, casting="same_kind")
-        else:
-            _exp(buf, buf)
-        r = buf.dot(W)
-        r += self._lb
-        if self._linear:
-            r += x.dot(self._lw)
-        return r
+        return gp_mean_one(x, x if self._linear else self._no_affine, self._w, self._b, self._mZaug, self._mW,
+                           self._lb, self._mean_lw, self._fast)
+
+    def affine_plan(self, W: np.ndarray, b: np.ndarray) -> tuple[tuple, bool]:
+        """This GP's mean plus an affine map ``f·W + b`` of other features ``f``, as one compiled
+        call: returns ``(plan, with_x)``, to be called ``gp_mean_one(x, xf, *plan)`` with ``xf`` =
+        ``[x, f]`` if ``with_x`` (the GP's own mean is linear in ``x``) else ``f``. For a GP on the
+        residual of a linear fit (:class:`~multiform.learn.inverse.InverseDynamicsModel`)."""
+        W = np.asarray(W, dtype=np.float64)
+        lw = np.vstack([self._lw, W]) if self._linear else W
+        plan = (self._w, self._b, self._mZaug, self._mW, self._lb + b, np.ascontiguousarray(lw), self._fast)
+        return plan, self._linear
 
     def predict_one_var(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Predictive mean and variance (eqs. 5, 6) of every output for one state ``x``;
@@ -407,17 +410,11 @@ class GPLaw(BaseEstimator, RegressorMixin):
         _exp(sbuf, sbuf)
         if self._sparse_mean:
             mean = sbuf.dot(self._sB)
+            mean += self._lb
+            if self._linear:
+                mean += x.dot(self._lw)
         else:
-            buf = self._buf
-            _dot(self._Zaug, ua, buf)
-            if self._fast:
-                _exp(buf, buf, dtype=_F32, casting="same_kind")
-            else:
-                _exp(buf, buf)
-            mean = buf.dot(self._A)
-        mean += self._lb
-        if self._linear:
-            mean += x.dot(self._lw)
+            mean = self.predict_one(x)
         var = self._sf2 - sbuf.dot(blas.dsymv(1.0, self._sM, sbuf, lower=1))
         return mean, (var if var > 0.0 else 0.0) * self._var_scale
 

@@ -34,6 +34,7 @@ from sklearn.base import BaseEstimator
 
 from ..errors import InvalidInput
 from ..io import load_npz, save_npz
+from .compiled import gp_mean_one
 from .gp import GPLaw
 
 KIND = "inverse_model"
@@ -138,9 +139,12 @@ class InverseDynamicsModel(BaseEstimator):
         self._sv = self._servo()
         self._qi = self._joint_index(self._sv)
         self._joints = operator.itemgetter(*self._qi)
-        # The linear part folded into one affine map of the raw features: τ_lin = F·W + b.
+        # The linear part folded into one affine map of the raw features: τ_lin = F·W + b,
+        # evaluated with the residual GP's mean in one compiled call.
         self._W = self.coef_[:-1] / self.f_scale_[:, None]
         self._b = self.coef_[-1] - self.f_mean_ @ self._W
+        self._plan, self._with_x = self.gp_.affine_plan(self._W, self._b)
+        self._n_gp = self.gp_.n_features_in_
 
     def predict(self, O: np.ndarray, A: np.ndarray) -> np.ndarray:
         """Torques for observation rows ``O`` and task accelerations ``A``."""
@@ -151,17 +155,16 @@ class InverseDynamicsModel(BaseEstimator):
         """The executor's interface: the servo's desired task acceleration, then the learned map.
 
         One state per call at the control rate, so the features are built from plain floats
-        (:class:`Servo`) and the linear part is one precomputed affine map."""
+        (:class:`Servo`), and the residual GP and the linear part (one precomputed affine map) are
+        one compiled call."""
         sv = self._sv
         o = obs.tolist()
         a = sv.accel(o, command)
         joints = list(self._joints(o))
-        g = np.array(joints + list(sv.load(math, o, a)) + a)
-        f = np.array(joints + a + list(sv.basis(math, o, a)))
-        tau = self.gp_.predict_one(g)
-        tau += self._b
-        tau += f @ self._W
-        return tau
+        g = joints + list(sv.load(math, o, a)) + a
+        both = np.array(g + joints + a + list(sv.basis(math, o, a)))
+        x = both[: self._n_gp]
+        return gp_mean_one(x, both if self._with_x else both[self._n_gp:], *self._plan)
 
     def summary(self) -> dict[str, Any]:
         s = self.gp_.summary()
