@@ -34,10 +34,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
+from numba.extending import register_jitable
 from scipy.linalg.lapack import dgesv as _dgesv
 
 OBSERVATION_NAMES: tuple[str, ...] = (
@@ -60,9 +61,9 @@ _R0, _W0 = _I["ee_rx"], _I["ee_wx"]
 _Q0, _QD0 = _I["q1"], _I["qd1"]
 
 
-@dataclass(frozen=True)
-class Gains:
-    """Gains and limits of the task-space servo (see the module docstring)."""
+class Gains(NamedTuple):
+    """Gains and limits of the task-space servo (see the module docstring). A named tuple, so the
+    compiled inverse-model features (:mod:`multiform.learn.servos`) can take it as a constant."""
 
     kv: float = 30.0
     wall: float = 12.0
@@ -79,6 +80,7 @@ class Gains:
 DEFAULT_GAINS = Gains()
 
 
+@register_jitable
 def limited_velocity(v_cmd: float, x: float, gains: Gains = DEFAULT_GAINS) -> float:
     """The velocity the servo actually tracks: ``v_cmd`` clipped to ±v_max and by the soft wall."""
     v = min(max(v_cmd, -gains.v_max), gains.v_max)
@@ -97,8 +99,10 @@ def task_acceleration(obs: np.ndarray, v_cmd: float, gains: Gains = DEFAULT_GAIN
     return np.array(task_acceleration_list(obs.tolist() if isinstance(obs, np.ndarray) else obs, v_cmd, gains))
 
 
+@register_jitable
 def task_acceleration_list(o: Sequence[float], v_cmd: float, gains: Gains = DEFAULT_GAINS) -> list[float]:
-    """:func:`task_acceleration` on an observation list, as a list: the 1 kHz path (plain floats)."""
+    """:func:`task_acceleration` on an observation list, as a list: plain floats in Python; also
+    callable from compiled code (``register_jitable``), where ``o`` is an array."""
     g = gains
     x, xd = o[_X], o[_XD]
     ax = g.kv * (limited_velocity(float(v_cmd), x, g) - xd)

@@ -23,7 +23,6 @@ names its servo and loading it can never run code from the file.
 from __future__ import annotations
 
 import math
-import operator
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -45,35 +44,23 @@ VERSION = 2                     # 2: the residual GP's metadata nested under "gp
 class Servo:
     """A robot's fixed maneuver servo and the load features its inverse model reads.
 
-    ``load`` and ``basis`` take a math module and return a tuple of features: called with ``math``
-    on one observation list and one acceleration list (the 1 kHz path, plain floats: numpy on
-    arrays of one row costs microseconds per operation), or with ``numpy`` on the columns of many
-    rows (fitting) — one formula for both.
+    ``load`` and ``basis`` take a math module and return a tuple of features: called with ``numpy``
+    on the columns of many rows (fitting) and compiled into ``features`` for one state at the
+    control rate — one formula for both (:mod:`.servos`). ``features(obs, command)`` returns the
+    GP's inputs ``[q, q̇, load, a]`` followed by the linear features ``[q, q̇, a, basis]``, ``a``
+    the servo's desired task acceleration for the command.
     """
 
-    accel: Callable[[Sequence[float], Sequence[float]], list]  # (obs list, command) -> a, 6 floats
+    features: Callable[[np.ndarray, tuple], np.ndarray]
     observation_names: tuple[str, ...]
     load: Callable[[Any, Sequence, Sequence], tuple]             # (math|numpy, obs, a) -> GP load inputs
     basis: Callable[[Any, Sequence, Sequence], tuple]            # (math|numpy, obs, a) -> linear load features
 
 
 def _arm_pendulum_servo() -> Servo:
-    from ..envs.osc import OBSERVATION_NAMES, task_acceleration_list
-    ti, wi = OBSERVATION_NAMES.index("theta"), OBSERVATION_NAMES.index("omega")
-
-    def load(m: Any, o: Sequence, a: Sequence) -> tuple:
-        th = o[ti]
-        return m.sin(th), m.cos(th), o[wi]
-
-    def basis(m: Any, o: Sequence, a: Sequence) -> tuple:
-        # A rigid pendulum's pull on its pivot: gravity and centripetal terms, and its swing's
-        # response to the pivot's own acceleration (a_x, a_z) through θ̈.
-        th, om = o[ti], o[wi]
-        s, c = m.sin(th), m.cos(th)
-        w2, ax, az = om * om, a[0], a[2]
-        return s, c, om, w2 * s, w2 * c, s * c, c * c, ax * c * c, ax * s * c, az * s * s, az * s * c
-
-    return Servo(lambda obs, cmd: task_acceleration_list(obs, cmd[0]), OBSERVATION_NAMES, load, basis)
+    from ..envs.osc import OBSERVATION_NAMES
+    from .servos import arm_pendulum_basis, arm_pendulum_features, arm_pendulum_load
+    return Servo(arm_pendulum_features, OBSERVATION_NAMES, arm_pendulum_load, arm_pendulum_basis)
 
 
 SERVOS: dict[str, Callable[[], Servo]] = {"arm_pendulum": _arm_pendulum_servo}
@@ -136,9 +123,12 @@ class InverseDynamicsModel(BaseEstimator):
         return self
 
     def _prepare(self) -> None:
-        self._sv = self._servo()
-        self._qi = self._joint_index(self._sv)
-        self._joints = operator.itemgetter(*self._qi)
+        self._sv = sv = self._servo()
+        probe = sv.features(np.zeros(len(sv.observation_names)), (0.0,))
+        d_gp, d_lin = self.gp_.n_features_in_, self.coef_.shape[0] - 1
+        if probe.shape != (d_gp + d_lin,):
+            raise ValueError(f"servo {self.servo!r} gives {probe.shape[0]} features, the model reads "
+                             f"{d_gp} + {d_lin} ({self.n_joints} joints)")
         # The linear part folded into one affine map of the raw features: τ_lin = F·W + b,
         # evaluated with the residual GP's mean in one compiled call.
         self._W = self.coef_[:-1] / self.f_scale_[:, None]
@@ -151,20 +141,14 @@ class InverseDynamicsModel(BaseEstimator):
         G, F = self._inputs(np.atleast_2d(O), np.atleast_2d(A))
         return F @ self._W + self._b + self.gp_.predict(G)
 
-    def torques(self, obs: np.ndarray, command: np.ndarray) -> np.ndarray:
+    def torques(self, obs: np.ndarray, command: Sequence[float]) -> np.ndarray:
         """The executor's interface: the servo's desired task acceleration, then the learned map.
 
-        One state per call at the control rate, so the features are built from plain floats
-        (:class:`Servo`), and the residual GP and the linear part (one precomputed affine map) are
-        one compiled call."""
-        sv = self._sv
-        o = obs.tolist()
-        a = sv.accel(o, command)
-        joints = list(self._joints(o))
-        g = joints + list(sv.load(math, o, a)) + a
-        both = np.array(g + joints + a + list(sv.basis(math, o, a)))
-        x = both[: self._n_gp]
-        return gp_mean_one(x, both if self._with_x else both[self._n_gp:], *self._plan)
+        Two compiled calls per state: the servo's features (:class:`Servo`), then the residual GP
+        and the linear part (one precomputed affine map) together."""
+        both = self._sv.features(obs, tuple(command))
+        n = self._n_gp
+        return gp_mean_one(both[:n], both if self._with_x else both[n:], *self._plan)
 
     def summary(self) -> dict[str, Any]:
         s = self.gp_.summary()
@@ -208,5 +192,8 @@ class InverseDynamicsModel(BaseEstimator):
             raise InvalidInput(f"the residual GP reads {m.gp_.n_features_in_} inputs, expected {d_gp}", file=f,
                                element="gp")
         m.n_train_ = int(meta.get("n_train", 0))
-        m._prepare()
+        try:
+            m._prepare()
+        except ValueError as exc:
+            raise InvalidInput(str(exc), file=f, element="n_joints") from None
         return m
