@@ -3,8 +3,6 @@ practice progress, success rates, MP4s."""
 
 from __future__ import annotations
 
-import multiprocessing as mp
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -36,34 +34,15 @@ def draw_versions(model: SkillModel, folder: Path, scenario_of: dict[int, str]) 
     return out
 
 
-def _trial(model: SkillModel, seed: int, options: dict[str, Any], push: dict[str, Any] | None,
-           use_inverse_model: bool, qpos_every: int):
+def _trial(model: SkillModel, job: Job, seed: int, push: dict[str, Any] | None, qpos_every: int):
     env = model.make_env(render_mode="rgb_array")
     try:
-        ex = model.executor(env, use_inverse_model=use_inverse_model)
-        trace = ex.run(seed=seed, options=options, perturb=PushInPlace(**push) if push else None,
-                       qpos_every=qpos_every)
+        ex = model.executor(env, use_inverse_model=job.cfg.inverse_model)
+        trace = ex.run(seed=seed, options=job.task.trial_options(seed),
+                       perturb=PushInPlace(**push) if push else None, qpos_every=qpos_every)
     finally:
         env.close()
     return trace
-
-
-def _pick(model_dir: str, out: Path, key: str, title: str, seed: int, options: dict[str, Any],
-          push: dict[str, Any] | None, use_inverse_model: bool, plot_variables: list, videos: bool,
-          fps: int) -> dict[str, Any]:
-    """One chosen evaluation trial run again with poses kept: its motion plot and (with ``videos``)
-    its MP4. Returns the files written, relative to ``out``. Plain arguments: it runs in a worker."""
-    model = SkillModel(model_dir)
-    qpos_every = int(round(1.0 / (fps * 1e-3))) if videos else 0
-    trace = _trial(model, seed, options, push, use_inverse_model, qpos_every)
-    plot = motion_plot(trace, plot_variables, out / "plots" / f"{key}.png",
-                       title=f"{title} (seed {trace.seed}, {trace.outcome})")
-    done: dict[str, Any] = {"plot": str(plot.relative_to(out))}
-    if videos and trace.qpos is not None:
-        path = out / "videos" / f"{key}.mp4"
-        write_video(model, trace, path, fps)
-        done["video"] = {"file": str(path.relative_to(out)), "caption": title}
-    return done
 
 
 def write_video(model: SkillModel, trace, path: Path, fps: int) -> None:
@@ -95,6 +74,8 @@ def write_artifacts(job: Job, model: SkillModel, main: dict[str, Any]) -> None:
         art["plots"]["evaluation"] = str(rates_plot(rows, out / "plots" / "evaluation.png",
                                                     "success over the evaluation trials").relative_to(out))
     detail = main.get("trials_detail", [])
+    fps = 30
+    qpos_every = int(round(1.0 / (fps * 1e-3)))
     added = {r["target"] for r in job.metrics.get("revisions", []) if r["operator"] == "add_transition"}
     picks = {
         "success_trial": next((d for d in detail if d["success"] and not d["pushed"]), None),
@@ -103,21 +84,16 @@ def write_artifacts(job: Job, model: SkillModel, main: dict[str, Any]) -> None:
     specs = {s.seed: s for s in job.task.evaluation_specs(job.cfg.eval_trials, job.cfg.seed, job.cfg.push_fraction)}
     titles = {"success_trial": "a successful trial of the learned skill",
               "recovery_trial": "pushed while balancing: the added transition backs up to swing-up, then balances again"}
-    jobs = {key: dict(model_dir=str(model.path), out=out, key=key, title=titles[key], seed=specs[d["seed"]].seed,
-                      options=job.task.trial_options(d["seed"]), push=specs[d["seed"]].push,
-                      use_inverse_model=job.cfg.inverse_model, plot_variables=job.task.PLOT_VARIABLES,
-                      videos=job.cfg.videos, fps=30)
-            for key, d in picks.items() if d is not None}
-    # Each pick is a trial, a plot and a few hundred rendered frames: the two run side by side on a
-    # 2-core machine (forked before this process has made any GL context, so each makes its own).
-    if job.cfg.workers > 1 and len(jobs) > 1:
-        with ProcessPoolExecutor(max_workers=min(job.cfg.workers, len(jobs)), mp_context=mp.get_context("fork")) as pool:
-            futures = {key: pool.submit(_pick, **kw) for key, kw in jobs.items()}
-            done = {key: f.result() for key, f in futures.items()}
-    else:
-        done = {key: _pick(**kw) for key, kw in jobs.items()}
-    for key, files in done.items():
-        art["plots"][key] = files["plot"]
-        if "video" in files:
-            art["videos"][key] = files["video"]
+    for key, d in picks.items():
+        if d is None:
+            continue
+        spec = specs[d["seed"]]
+        trace = _trial(model, job, spec.seed, spec.push, qpos_every if job.cfg.videos else 0)
+        plot = motion_plot(trace, job.task.PLOT_VARIABLES, out / "plots" / f"{key}.png",
+                           title=f"{titles[key]} (seed {trace.seed}, {trace.outcome})")
+        art["plots"][key] = str(plot.relative_to(out))
+        if job.cfg.videos and trace.qpos is not None:
+            path = out / "videos" / f"{key}.mp4"
+            write_video(model, trace, path, fps)
+            art["videos"][key] = {"file": str(path.relative_to(out)), "caption": titles[key]}
     job.metrics["artifacts"] = art
