@@ -124,7 +124,9 @@ class Executor:
         n_obs, n_cmd, n_val = len(self.obs_names), len(self.cmd_names), len(self._value_names)
         n_places = len(self.apn.places)
         rec_obs = np.zeros((n_ticks, n_obs), np.float32)
-        rec_slots = np.zeros((n_ticks, len(runner.values)), np.float32)     # every value slot of the net
+        # every value slot of the net, one list per tick: copying the list is 0.3 µs where writing it
+        # into a float32 row costs 3.4 µs (numpy's sequence path); converted once at the end
+        slot_rows: list[list[float]] = []
         rec_cmd = np.zeros((n_ticks, n_cmd), np.float32)
         rec_raw = np.zeros((n_ticks, n_cmd), np.float32)
         marks: list[tuple[int, list[int]]] = [(0, list(runner.marking))]    # (tick, marking) at each change
@@ -144,7 +146,7 @@ class Executor:
                 marks.append((k, list(runner.marking)))
             values = runner.values
             rec_obs[k] = obs
-            rec_slots[k] = values
+            slot_rows.append(values[:])
             if qpos_every and k % qpos_every == 0 and data is not None:
                 poses.append(data.qpos.copy())
             if runner.outcome is not None:
@@ -188,7 +190,10 @@ class Executor:
         rec_mark = np.zeros((n, n_places), np.int16)
         for (k0, mk), (k1, _) in zip(marks, marks[1:] + [(n, None)]):
             rec_mark[k0:k1] = mk
-        rec_val, rec_dwell = rec_slots[:n, :n_val].copy(), rec_slots[:n, dwell_slots]
+        if len(slot_rows) < n:           # the env terminated the trial: its last row stays zero, as obs's does
+            slot_rows += [[0.0] * len(runner.values)] * (n - len(slot_rows))
+        rec_slots = np.array(slot_rows[:n], np.float32).reshape(n, len(runner.values))
+        rec_val, rec_dwell = rec_slots[:, :n_val].copy(), rec_slots[:, dwell_slots]
         return Trace(seed=seed, dt=dt, obs=rec_obs[:n], observation_names=self.obs_names, values=rec_val,
                      value_names=self._value_names, commands=rec_cmd[:n], raw_commands=rec_raw[:n],
                      command_names=self.cmd_names, marking=rec_mark, dwell=rec_dwell,
