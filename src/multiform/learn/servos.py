@@ -48,24 +48,15 @@ def arm_pendulum_features(obs: np.ndarray, command: tuple) -> np.ndarray:
     a = task_acceleration_list(obs, command[0], DEFAULT_GAINS)
     load = arm_pendulum_load(math, obs, a)
     basis = arm_pendulum_basis(math, obs, a)
-    out = np.empty(2 * len(_ARM_JOINTS) + len(load) + 2 * len(a) + len(basis))
-    k = 0
-    for i in _ARM_JOINTS:
-        out[k] = obs[i]
-        k += 1
-    for v in load:
-        out[k] = v
-        k += 1
-    for v in a:
-        out[k] = v
-        k += 1
-    for i in _ARM_JOINTS:
-        out[k] = obs[i]
-        k += 1
-    for v in a:
-        out[k] = v
-        k += 1
-    for v in basis:
-        out[k] = v
-        k += 1
+    nj, nl, na = len(_ARM_JOINTS), len(load), len(a)
+    lin = nj + nl + na                                  # where the linear part's features start
+    out = np.empty(lin + nj + na + len(basis))
+    for j, i in enumerate(_ARM_JOINTS):
+        out[j] = out[lin + j] = obs[i]
+    for j, v in enumerate(load):
+        out[nj + j] = v
+    for j, v in enumerate(a):
+        out[nj + nl + j] = out[lin + nj + j] = v
+    for j, v in enumerate(basis):
+        out[lin + nj + na + j] = v
     return out
