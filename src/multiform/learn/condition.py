@@ -11,7 +11,7 @@ Fitting (scikit-learn, offline): inputs standardised, RBF ``SVC`` with ``class_w
 ``max_support`` support vectors — with fewer training rows than that cap the cap always holds.
 
 Evaluation (the net, every tick): ``__call__(x) -> bool`` and ``decision(x)`` run through
-:class:`~.fast_svm.FastDecision`, numpy only. ``threshold`` trades false positives (firing where
+:class:`~.fast_svm.FastDecision` (one compiled loop per state). ``threshold`` trades false positives (firing where
 the mentor would not) against misses: the condition holds where ``decision(x) > threshold``;
 :meth:`LearnedCondition.threshold_for` picks one for a target false-positive rate.
 """
