@@ -60,7 +60,8 @@ def mixture_logits_one(x: np.ndarray, W: np.ndarray, c: np.ndarray, const: np.nd
     """Calibrated logits of the places' Gaussian mixtures at one raw state (see
     :meth:`multiform.learn.region.PlaceRegions._prepare` for the stacked map ``W, c, const``):
     component k's log density is ``const_k - |x W_k - c_k|²``, place p sums its components'
-    ``exp(· - amax)`` (no overflow: every term ≤ 0), then ``z_p = (log(sum + 1e-300) - tau'_p) · slope_p``."""
+    ``exp(· - amax)`` (no overflow: every term ≤ 0; a place whose components all underflow gets
+    ℓ ≈ amax − 690, far outside it, as it should be), then ``z_p = (log(sum + 1e-300) - tau'_p) · slope_p``."""
     d = x.shape[0]
     K = const.shape[0]
     s = np.zeros(tau_shifted.shape[0])

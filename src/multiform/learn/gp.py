@@ -85,8 +85,8 @@ _PROBE = 300
 _LOG_2PI = float(np.log(2.0 * np.pi))
 _mul, _sub, _exp, _dot = np.multiply, np.subtract, np.exp, np.dot
 # Bound on the relative error of one kernel value on the float32 exponential path: the exponent
-# a is rounded to float32 (|a|·2⁻²⁴) and a float32 exp (libm's expf, numpy's SIMD loop) is within 4 ulp (8·2⁻²⁴) when
-# the result is a normal float; below exp(−87) the absolute error is < 2⁻¹²⁶ (flush to zero or
+# a is rounded to float32 (|a|·2⁻²⁴) and a float32 exp (libm's expf, numpy's SIMD loop) is within
+# 4 ulp (8·2⁻²⁴) when the result is a normal float; below exp(−87) the absolute error is < 2⁻¹²⁶ (flush to zero or
 # subnormal), negligible against any law's output. Relative error of k ≤ (|a| + FAST_EXP_ULP)·2⁻²⁴.
 FAST_EXP_EPS = 2.0 ** -24
 # Up to this many points (inducing or training) the one-state mean is one compiled loop; above it
@@ -329,15 +329,15 @@ class GPLaw(BaseEstimator, RegressorMixin):
         self._exact_var = self.var_mode_ == "exact"
         self._mZaug, self._mW = (self._sZaug, self._sB) if self._sparse_mean else (self._Zaug, self._A)
         self._compiled_mean = self._mZaug.shape[0] <= COMPILED_MEAN_MAX_POINTS
-        self._mbuf = np.empty(self._mZaug.shape[0])
+        self._mbuf = self._sbuf if self._sparse_mean else self._buf
         # The mean function in raw units: y_mean for a constant mean, x·W + b for a linear one.
         B = self.linear_coef_
         self._linear = bool(np.any(B[:-1]))
         self._lw = np.ascontiguousarray(B[:-1] / self.x_scale_[:, None] * self.y_scale_)
         self._lb = np.ascontiguousarray(np.atleast_1d((B[-1] - (self.x_mean_ / self.x_scale_) @ B[:-1])
                                                       * self.y_scale_ + self.y_mean_), dtype=np.float64)
-        self._no_affine = np.empty(0)
-        self._mean_lw = self._lw if self._linear else np.zeros((0, self._mW.shape[1]))
+        self._no_affine, self._no_lw = np.empty(0), np.zeros((0, self._mW.shape[1]))
+        self._mean_lw = self._lw if self._linear else self._no_lw
         self.fast_exp_error_ = self._fast_exp_error() if getattr(self, "fast_exp", True) else None
         self._fast = self.fast_exp_error_ is not None and self.fast_exp_error_ <= FAST_EXP_PROBE_TOL
 
@@ -356,10 +356,9 @@ class GPLaw(BaseEstimator, RegressorMixin):
             probes.append(base + r * step / np.linalg.norm(step, axis=1, keepdims=True))
         P = np.concatenate(probes)
         if self._compiled_mean:
-            lw0 = np.zeros((0, self._mW.shape[1]))
             err = np.zeros(self._mW.shape[1])
             for x in (P + self._b) / self._w:                     # back to raw states
-                args = (x, self._no_affine, self._w, self._b, self._mZaug, self._mW, self._lb, lw0)
+                args = (x, self._no_affine, self._w, self._b, self._mZaug, self._mW, self._lb, self._no_lw)
                 np.maximum(err, np.abs(gp_mean_one(*args, True) - gp_mean_one(*args, False)), out=err)
             return float(np.max(err / self.y_scale_))
         D = np.einsum("ij,ij->i", P, P)[:, None] + np.einsum("ij,ij->i", Z, Z)[None, :] - 2.0 * (P @ Z.T)

@@ -134,7 +134,7 @@ class InverseDynamicsModel(BaseEstimator):
         self._W = self.coef_[:-1] / self.f_scale_[:, None]
         self._b = self.coef_[-1] - self.f_mean_ @ self._W
         self._plan, self._with_x = self.gp_.affine_plan(self._W, self._b)
-        self._n_gp = self.gp_.n_features_in_
+        self._n_gp = d_gp
 
     def predict(self, O: np.ndarray, A: np.ndarray) -> np.ndarray:
         """Torques for observation rows ``O`` and task accelerations ``A``."""

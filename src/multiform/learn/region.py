@@ -190,8 +190,8 @@ class PlaceRegions(BaseEstimator):
         self._const = np.concatenate(consts)
         K = len(self._const)
         self._S = np.kron(np.eye(K), np.ones((d, 1)))                         # (K d, K) sums each block
-        self._groups = [np.flatnonzero(np.array(groups) == i) for i in range(len(self.places_))]
         self._component_place = np.array(groups, dtype=np.int64)
+        self._groups = [np.flatnonzero(self._component_place == i) for i in range(len(self.places_))]
         self._tau = np.array([self.densities_[p].tau for p in self.places_])
         self._slope = np.array([self.densities_[p].slope for p in self.places_])
         self._memo_key: bytes | None = None
