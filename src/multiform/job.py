@@ -50,7 +50,9 @@ class JobConfig:
     demos: int | None = None         # None: the task's DEMOS
     eval_trials: int = 200
     ablation_trials: int = 100
-    practice_max_trials: int = 30
+    practice_max_trials: int = 30    # per repair scenario
+    practice_budget: int = 100       # trials of all scenarios together; learning from practice gets the rest
+    learn: bool = True               # learn from practice (own experience, mentor's grades); False: repair only
     workers: int = 2
     seed: int = 0
     push_fraction: float = 0.5
@@ -123,21 +125,30 @@ class Job:
     # -- 3. practice ------------------------------------------------------------------------------
     def practise(self, model: SkillModel) -> dict[str, Any]:
         results = {}
+        used = 0
         for sc in self.task.scenarios():
+            if sc.get("learn") and not self.cfg.learn:
+                continue
             folder = self.out / "practice" / sc["name"]
-            cfg = PracticeConfig(max_trials=self.cfg.practice_max_trials, seed=self.cfg.seed + sc.get("seed", 0),
-                                 **sc.get("config", {}))
-            practice = Practice(model, folder, cfg, options=sc["options"], perturb=sc.get("perturb"), name=sc["name"])
+            limit = self.cfg.practice_max_trials if not sc.get("learn") else self.cfg.practice_budget - used
+            if limit <= 0:
+                continue
+            cfg = PracticeConfig(max_trials=limit, seed=self.cfg.seed + sc.get("seed", 0), **sc.get("config", {}))
+            mentor = sc["mentor"]() if sc.get("mentor") else None
+            practice = Practice(model, folder, cfg, options=sc["options"], perturb=sc.get("perturb"), name=sc["name"],
+                                mentor=mentor)
             with self._bar(cfg.max_trials, f"practice {sc['name']}") as bar:
                 bar.update(practice.load_state().trial)
                 state = practice.run(progress=lambda st, tr: bar.update(1))
+            used += len(state.trials)
             revs = [r for r in state.revisions if r.get("operator") != "none"]
             first_ok = next((t["trial"] for t in state.trials if t["success"]), None)
             results[sc["name"]] = {
                 "title": sc["title"], "trials": len(state.trials), "stop_reason": state.stop_reason,
                 "successes": sum(t["success"] for t in state.trials), "first_success_trial": first_ok,
                 "revisions": [{k: r[k] for k in ("version", "operator", "target", "reason", "after_trial")} for r in revs],
-                "outcomes": [t["outcome"] for t in state.trials], "state": str(folder / "state.json")}
+                "outcomes": [t["outcome"] for t in state.trials], "state": str(folder / "state.json"),
+                **(_learning_summary(state) if cfg.learn else {})}
             self.log(f"  {sc['name']}: {len(state.trials)} trials, revisions: "
                      + (", ".join(f"{r['operator']} {r['target']}" for r in revs) or "none")
                      + f"; {state.stop_reason}")
@@ -226,6 +237,21 @@ class Job:
         write_json(self.out / "evaluation_trials.json", {r["name"]: r["trials_detail"] for r in rows})
         self.log(f"wrote {self.out / 'report.html'} (total {self.timings['total_s']:.0f} s)")
         return m
+
+
+def _learning_summary(state: Any) -> dict[str, Any]:
+    """What a scenario that learned from practice did: own segments, the mentor's grades and how
+    often they agreed with the robot's, plain (not exploring) trials' success, seconds of robot time."""
+    plain = [t for t in state.trials if not t.get("explored")]
+    graded = state.mentor_graded
+    stays = sum(g["stays"] for g in graded)
+    return {"own_segments": sum(t.get("own_segments", 0) for t in state.trials),
+            "mentor_labelled_trials": len(graded),
+            "mentor_agreement": {"stays": stays, "agree": sum(g["agree"] for g in graded),
+                                 "rate": round(sum(g["agree"] for g in graded) / stays, 4) if stays else None},
+            "plain_trials": len(plain), "plain_successes": sum(t["success"] for t in plain),
+            "curve": [[t["trial"], bool(t["success"]), bool(t.get("explored"))] for t in state.trials],
+            "robot_seconds": round(sum(t["duration"] for t in state.trials), 1)}
 
 
 def train_model(model: SkillModel, seed: int = 0, log: Log = print,

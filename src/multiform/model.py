@@ -6,7 +6,9 @@
       skill.yaml             the mentor's definition, copied once and never written again
       skill.history.jsonl    the robot's revisions of it (JSON lines)
       model.json             manifest: skill, env, the demonstrations it learned from, summaries
-      laws/<law>.npz         GP control laws
+      laws/<fit>.npz         GP control laws (the mentor-only fit is named for its law; refits from
+                             practice get new names, and the net says which fit each law runs)
+      experience/            the robot's own graded practice: segments.jsonl (provenance) + traces
       judges/<place>.npz     SVM judges
       conditions/<name>.npz  learned conditions (switch SVMs, region conditions)
       regions.npz            place regions
@@ -122,8 +124,16 @@ class SkillModel:
     def save_law(self, name: str, law: GPLaw) -> None:
         law.save(self.path / "laws" / f"{name}.npz")
 
-    def laws(self) -> dict[str, GPLaw]:
-        return {p.stem: GPLaw.load(p) for p in sorted((self.path / "laws").glob("*.npz"))}
+    def laws(self, apn: APN | None = None) -> dict[str, GPLaw]:
+        """The fitted laws ``apn`` (default: the latest net) runs, by law name: each law's current
+        fit (``laws/<fit>.npz``; a refit from practice is a new file, the earlier fits stay)."""
+        apn = self.apn if apn is None else apn
+        out = {}
+        for name, spec in apn.laws.items():
+            p = self.path / "laws" / f"{spec.fit_name}.npz"
+            if p.exists():
+                out[name] = GPLaw.load(p)
+        return out
 
     def save_judge(self, place: str, judge: Judge) -> None:
         judge.save(self.path / "judges" / f"{place}.npz")
@@ -176,7 +186,7 @@ class SkillModel:
         """An executor for ``apn`` (default: the latest net) with this model's laws and conditions."""
         apn = apn or self.apn
         inverse = self.inverse_model() if use_inverse_model else None
-        return Executor(apn, env, self.laws(), self.conditions(), inverse, net_version=self.version)
+        return Executor(apn, env, self.laws(apn), self.conditions(), inverse, net_version=self.version)
 
     def grade(self, trace: Trace, source: str, judges: Mapping[str, Judge] | None = None,
               apn: APN | None = None) -> TrialGrade:
@@ -199,6 +209,14 @@ class ModelLearners:
         self.model = model
         self.seed = seed
         self._floors: dict[str, float] | None = None
+
+    def fresh_law(self, law: str) -> str:
+        """An unused name for a new fit of ``law`` (``<law>_r1``, ``<law>_r2``, ...)."""
+        used = {p.stem for p in (self.model.path / "laws").glob("*.npz")}
+        k = 1
+        while f"{law}_r{k}" in used:
+            k += 1
+        return f"{law}_r{k}"
 
     def _fresh(self, stem: str) -> str:
         used = {p.stem for p in (self.model.path / "conditions").glob("*.npz")}

@@ -1,5 +1,20 @@
 """The practice loop: trials from P0, graded by the judges; on constant failure, diagnose and repair.
 
+With ``learn`` (learning from practice, the paper's third form in full) the loop also
+* keeps the stays it grades successful with a margin as the laws' own training data
+  (:mod:`.experience`) and refits the laws from the mentor's and its own data every
+  ``refit_every`` trials (a ``refit_law`` revision);
+* explores on every ``explore_every``-th trial (:mod:`.explore`), so its own data holds variations
+  of its maneuvers and not only their repetition; the other trials measure the skill as it is;
+* has the mentor grade every ``mentor_every``-th trial, up to ``mentor_budget`` trials, from the
+  trial's trace alone; the labels revise the judges, and each label that contradicts the robot's
+  own grade is counted;
+* watches every revision: if the robot's own success rate over the next ``revert_window`` plain
+  trials is clearly worse than over the ``revert_window`` before it (one-sided Fisher test at
+  ``revert_p``), the net goes back to the version before (a ``revert`` revision);
+* stops when its own success rate over the last ``target_window`` plain trials reaches
+  ``target_rate``.
+
 State is saved after every trial (``state.json`` in the practice folder, written atomically), and
 every revision goes to the model's history as soon as it is made, so a killed loop resumes where it
 stopped: the trial that was running is run again with the same seed; finished trials, revisions and
@@ -12,14 +27,23 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from ..demos.episode import Episode, SegmentLabel
 from ..io import read_json, write_json
+from ..learn.labels import is_mentor, records_from_episode
+from ..learn.training import fit_law
+from ..learn.views import place_episode
 from ..model import ModelLearners, SkillModel
+from ..petri.net import APN
+from ..petri.revision import Revision, refit_law, revert
+from ..runtime.executor import Executor
 from ..runtime.trace import Trace
 from .diagnosis import diagnose
+from .experience import Experience, select_segments
+from .explore import ExploringLaw, law_noise
 from .repair import repair
 
 STATE_VERSION = 1
@@ -43,6 +67,22 @@ class PracticeConfig:
     max_trials: int = 40
     seed: int = 0
     use_judges: bool = True
+    learn: bool = False
+    margin: float = 0.3
+    explore: float = 0.0
+    explore_every: int = 2
+    explore_tau: float = 0.1
+    refit_every: int = 10
+    refit_min_segments: int = 5
+    mentor_every: int = 0
+    mentor_budget: int = 0
+    target_rate: float = 0.0
+    target_window: int = 20
+    revert_window: int = 10
+    revert_p: float = 0.1
+
+    def explores(self, k: int) -> bool:
+        return self.explore > 0 and self.explore_every > 0 and k % self.explore_every == self.explore_every - 1
 
     def trial_seed(self, k: int) -> int:
         return 1_000_003 * (self.seed + 1) + k
@@ -58,6 +98,9 @@ class PracticeState:
     failed_since_repair: list[int] = field(default_factory=list)
     lambda_exhausted: list[str] = field(default_factory=list)
     repairs_without_effect: int = 0
+    mentor_graded: list[dict[str, Any]] = field(default_factory=list)
+    watch: dict[str, Any] | None = None
+    last_refit_trial: int = -1
     done: bool = False
     stop_reason: str = ""
     format_version: int = STATE_VERSION
@@ -76,20 +119,28 @@ class PracticeState:
         return s, f
 
 
+MentorGrader = Callable[[Episode, APN], list[SegmentLabel]]
+
+
 class Practice:
     """Runs the loop for one model in ``folder`` (state, failed traces), with trial ``options``
-    (reset options per trial index) and an optional ``perturb`` factory (the experimenter's pushes,
-    per trial index; see :meth:`multiform.runtime.executor.Executor.run`)."""
+    (reset options per trial index), an optional ``perturb`` factory (the experimenter's pushes,
+    per trial index; see :meth:`multiform.runtime.executor.Executor.run`) and, for learning from
+    practice, the ``mentor``'s grader of a trial (its trace as an episode and the net that ran it →
+    one label per stay)."""
 
     def __init__(self, model: SkillModel, folder: str | Path, config: PracticeConfig | None = None,
-                 options: Options | None = None, perturb: Perturb | None = None, name: str = "practice"):
+                 options: Options | None = None, perturb: Perturb | None = None, name: str = "practice",
+                 mentor: MentorGrader | None = None):
         self.model = model
         self.folder = Path(folder)
         self.config = config or PracticeConfig()
         self.options = options or (lambda k: {})
         self.perturb = perturb
         self.name = name
+        self.mentor = mentor
         self.learners = ModelLearners(model, seed=self.config.seed)
+        self.experience = Experience(model.path)
 
     # -- state -------------------------------------------------------------------------------------
     @property
@@ -120,6 +171,10 @@ class Practice:
     def _trace_path(self, k: int) -> Path:
         return self.folder / "traces" / f"trial_{k:04d}.npz"
 
+    def source(self, k: int) -> str:
+        """The id of trial ``k`` in the label store and the experience store."""
+        return f"{self.name}_{k}"
+
     # -- the loop ----------------------------------------------------------------------------------
     def run(self, progress: Callable[[PracticeState, dict[str, Any]], None] | None = None,
             stop_after: int | None = None) -> PracticeState:
@@ -128,7 +183,7 @@ class Practice:
         self.folder.mkdir(parents=True, exist_ok=True)
         state = self.load_state()
         env = self.model.make_env()
-        executor, version = None, -1
+        executor, explorer, version = None, None, -1
         judges = self.model.judges() if cfg.use_judges else {}
         ran = 0
         while not state.done:
@@ -140,12 +195,19 @@ class Practice:
             if self.model.version != version:
                 version = self.model.version
                 executor = self.model.executor(env)
+                explorer = self._explorer(executor) if cfg.explore > 0 else None
                 judges = self.model.judges() if cfg.use_judges else {}
             k = state.trial
             t0 = time.perf_counter()
-            trace = executor.run(seed=cfg.trial_seed(k), options=self.options(k),
-                                 perturb=self.perturb(k) if self.perturb else None)
-            grade = self.model.grade(trace, f"{self.name}_{k}", judges, apn=executor.apn) if judges else None
+            explores = explorer is not None and cfg.explores(k)
+            runner = executor
+            if explores:
+                for i, law in enumerate(sorted(explorer.laws)):
+                    explorer.laws[law].reseed(cfg.trial_seed(k) * 31 + i)
+                runner = explorer
+            trace = runner.run(seed=cfg.trial_seed(k), options=self.options(k),
+                               perturb=self.perturb(k) if self.perturb else None)
+            grade = self.model.grade(trace, self.source(k), judges, apn=executor.apn) if judges else None
             success = trace.success and (grade is None or grade.success)
             summary = {"trial": k, "seed": cfg.trial_seed(k), "net_version": version, "outcome": trace.outcome,
                        "success": bool(success), "judge_score": None if grade is None else round(grade.score, 4),
@@ -154,6 +216,12 @@ class Practice:
                        "clips": {c: v["count"] for c, v in trace.clips.items()},
                        "wall": round(time.perf_counter() - t0, 3),
                        "time": time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime())}
+            if cfg.explore > 0:
+                summary["explored"] = explores
+            if cfg.learn and grade is not None:
+                summary.update(self._learn_from(state, k, trace, grade, executor.apn))
+                if summary.get("judges_revised"):
+                    judges = self.model.judges()
             state.trials.append(summary)
             if not success:
                 trace.save(self._trace_path(k))
@@ -161,16 +229,181 @@ class Practice:
             state.trial += 1
             ran += 1
             succ, fail = state.streak
+            if cfg.learn:
+                self._check_watch(state)
             if succ >= cfg.success_streak:
                 state.done, state.stop_reason = True, f"{succ} successes in a row"
+            elif self._reached_target(state):
+                state.done = True
+                state.stop_reason = (f"own success rate {self._plain_rate(state, cfg.target_window):.2f} over the last "
+                                     f"{cfg.target_window} plain trials")
             elif self._constant_failure(state):
                 self._repair(state)
+            elif cfg.learn and state.trial - state.last_refit_trial - 1 >= cfg.refit_every:
+                self._refit(state)
             self.save_state(state)
             if progress:
                 progress(state, summary)
         self.save_state(state)
         env.close()
         return state
+
+    # -- learning from practice ----------------------------------------------------------------------
+    def _explorer(self, executor: Executor) -> Executor:
+        """An executor of the same net whose laws explore (reseeded per trial)."""
+        cfg = self.config
+        laws = {name: ExploringLaw(law, cfg.explore * law_noise(law), cfg.explore_tau, executor.dt, 0)
+                for name, law in executor.laws.items()}
+        return Executor(executor.apn, executor.env, laws, self.model.conditions(), executor.inverse_model,
+                        net_version=executor.net_version)
+
+    def _learn_from(self, state: PracticeState, k: int, trace: Trace, grade: Any, apn: APN) -> dict[str, Any]:
+        """The mentor's grade (on schedule), then the own segments the trial adds."""
+        cfg, out = self.config, {}
+        source = self.source(k)
+        verdicts: dict[tuple[int, int], bool] = {}
+        graded = {g["trial"] for g in state.mentor_graded}
+        if (self.mentor is not None and cfg.mentor_every > 0 and k % cfg.mentor_every == cfg.mentor_every - 1
+                and len(graded) < cfg.mentor_budget and k not in graded):
+            verdicts, account = self._mentor_grades(source, trace, grade, apn)
+            state.mentor_graded.append({"trial": k, **account})
+            out["mentor"] = account
+            out["judges_revised"] = bool(account.get("revised"))
+        own = select_segments(apn, trace, grade, source, self.name, k, cfg.margin, verdicts)
+        if own:
+            self.experience.add(trace, own, source)
+        out["own_segments"] = len(own)
+        return out
+
+    def _mentor_grades(self, source: str, trace: Trace, grade: Any, apn: APN
+                       ) -> tuple[dict[tuple[int, int], bool], dict[str, Any]]:
+        """The mentor labels every judged stay of the trial; the labels go to the label store and
+        revise the judges; returns the verdicts by stay and an account (agreement with the robot)."""
+        from ..demos.labelling import refit_judges
+        ep = trace.to_episode()
+        placed = place_episode(apn, ep)
+        labels = self.mentor(placed, apn)
+        judged = {g.place for g in grade.segments}
+        robot = {(g.start, g.end): g.success for g in grade.segments}
+        verdicts = {(lab.start, lab.end): bool(lab.success) for lab in labels if lab.transition in judged}
+        records = records_from_episode(source, [lab for lab in labels if lab.transition in judged], lambda p: p)
+        agree = sum(robot.get(key) == v for key, v in verdicts.items())
+        account = {"stays": len(verdicts), "agree": int(agree), "mentor_success": int(sum(verdicts.values())),
+                   "robot_success": int(sum(robot.get(key, False) for key in verdicts))}
+        if records:
+            self.experience.keep_trace(trace, source)
+            self.model.labels.add_many(records)
+            mine = {g["source"]: self.experience.episode(g["source"])
+                    for g in ({"source": s} for s in self._mentor_sources()) if self.experience.trace_path(g["source"]).exists()}
+            mine[source] = ep
+            info = refit_judges(self.model, sorted({r.place for r in records}), mine, seed=self.config.seed)
+            account["revised"] = {p: {k: v for k, v in d.items() if k in ("segments", "cv_score", "kernel")}
+                                  for p, d in info.items()}
+        return verdicts, account
+
+    def _mentor_sources(self) -> list[str]:
+        return sorted({r.source for r in self.model.labels if not r.source.startswith("demo_")
+                       and is_mentor(r.labeller)})
+
+    def _refit(self, state: PracticeState) -> None:
+        """Refit each law that has new own segments since its fit; one ``refit_law`` revision each."""
+        cfg = self.config
+        state.last_refit_trial = state.trial - 1
+        apn = self.model.apn
+        segments = self.experience.segments()
+        made = []
+        for law, spec in apn.laws.items():
+            mine = [s for s in segments if law in s.laws]
+            new = [s for s in mine if s.trial > self._fit_trial(law) or s.scenario != self._fit_scenario(law)]
+            if len(new) < cfg.refit_min_segments:
+                continue
+            own = self.experience.law_episodes(law, mine)
+            current = self.model.laws(apn).get(law)
+            fitted, info = fit_law(self.model.history.version(0), self.model.episodes, law, seed=cfg.seed,
+                                   own=own, own_apn=apn, current=current)
+            fit = self.learners.fresh_law(law)
+            self.model.save_law(fit, fitted)
+            evidence = {"own_segments": len(mine), "new_own_segments": len(new), "own_trials": len(own),
+                        "own_samples": info.get("n_own"), "mentor_samples": info.get("n_mentor"),
+                        "heldout_nrmse_before": _round(info.get("heldout_nrmse_current")),
+                        "heldout_nrmse_after": _round(info.get("heldout_nrmse")),
+                        "sources": sorted({s.source for s in mine}), "after_trial": state.trial - 1,
+                        "scenario": self.name}
+            _, rev = refit_law(apn, law, fit, f"{len(new)} new segments of its own graded successful "
+                                              f"(score >= {0.5 + cfg.margin:.2f}); refit from the mentor's and its own data",
+                               evidence)
+            made.append(self._record(state, rev, {"refit": info}))
+            apn = self.model.apn
+        if made:
+            self._watch(state, made[0] - 1, made[-1])
+
+    def _fit_trial(self, law: str) -> int:
+        """The last trial of this scenario a recorded refit of ``law`` had seen (-1 if none)."""
+        for r in reversed(self.model.history.revisions()):
+            if r.operator == "refit_law" and r.target == law and r.evidence.get("scenario") == self.name:
+                return int(r.evidence.get("after_trial", -1))
+        return -1
+
+    def _fit_scenario(self, law: str) -> str:
+        for r in reversed(self.model.history.revisions()):
+            if r.operator == "refit_law" and r.target == law:
+                return str(r.evidence.get("scenario", ""))
+        return self.name
+
+    def _record(self, state: PracticeState, rev: Revision, diagnosis: dict[str, Any] | None = None) -> int:
+        v = self.model.history.next_version()
+        rev = replace(rev, version=v)
+        self.model.history.record(rev)
+        state.revisions.append({"version": v, "operator": rev.operator, "target": rev.target, "reason": rev.reason,
+                                "after_trial": state.trial - 1, "scenario": self.name,
+                                **({"diagnosis": diagnosis} if diagnosis is not None else {})})
+        return v
+
+    # -- watching revisions ----------------------------------------------------------------------------
+    def _plain(self, state: PracticeState) -> list[dict[str, Any]]:
+        return [t for t in state.trials if not t.get("explored")]
+
+    def _plain_rate(self, state: PracticeState, n: int) -> float:
+        last = self._plain(state)[-n:]
+        return sum(t["success"] for t in last) / len(last) if last else 0.0
+
+    def _reached_target(self, state: PracticeState) -> bool:
+        cfg = self.config
+        return cfg.target_rate > 0 and len(self._plain(state)) >= cfg.target_window \
+            and self._plain_rate(state, cfg.target_window) >= cfg.target_rate
+
+    def _watch(self, state: PracticeState, before_version: int, version: int) -> None:
+        """Watch the revisions up to ``version``: compared over the next plain trials with the plain
+        trials before them."""
+        if not self.config.learn:
+            return
+        before = [bool(t["success"]) for t in self._plain(state)[-self.config.revert_window:]]
+        state.watch = {"before_version": before_version, "version": version, "after_trial": state.trial - 1,
+                       "before": before}
+
+    def _check_watch(self, state: PracticeState) -> None:
+        w, cfg = state.watch, self.config
+        if w is None:
+            return
+        after = [bool(t["success"]) for t in self._plain(state) if t["trial"] > w["after_trial"]]
+        if len(after) < cfg.revert_window:
+            return
+        state.watch = None
+        before = w["before"]
+        if len(before) < cfg.revert_window // 2 or self.model.version != w["version"]:
+            return
+        from scipy.stats import fisher_exact
+        table = [[sum(before), len(before) - sum(before)], [sum(after), len(after) - sum(after)]]
+        p = float(fisher_exact(table, alternative="greater")[1])
+        if p >= cfg.revert_p:
+            return
+        target = self.model.history.version(w["before_version"])
+        _, rev = revert(self.model.apn, w["before_version"], target,
+                        f"own success rate fell from {sum(before)}/{len(before)} to {sum(after)}/{len(after)} plain "
+                        f"trials after version {w['version']} (one-sided Fisher p = {p:.3f})",
+                        {"before": table[0], "after": table[1], "p": round(p, 4), "reverted": w["version"],
+                         "scenario": self.name})
+        self._record(state, rev)
 
     def _constant_failure(self, state: PracticeState) -> bool:
         cfg = self.config
@@ -207,14 +440,10 @@ class Practice:
                                     "diagnosis": d.to_json()})
             state.failed_since_repair = []
             return
+        first = self.model.version
         for rev in fix.revisions:
-            v = self.model.history.next_version()
-            from dataclasses import replace as _replace
-            rev = _replace(rev, version=v)
-            self.model.history.record(rev)
-            state.revisions.append({"version": v, "operator": rev.operator, "target": rev.target,
-                                    "reason": rev.reason, "after_trial": state.trial - 1, "scenario": self.name,
-                                    "diagnosis": d.to_json()})
+            self._record(state, rev, d.to_json())
+        self._watch(state, first, self.model.version)
         ops = {r.operator for r in fix.revisions}
         if ops == {"set_lambda"}:
             state.lambda_exhausted = sorted(set(state.lambda_exhausted) | {fix.revisions[0].target}) \
@@ -223,3 +452,7 @@ class Practice:
         else:
             state.lambda_exhausted = []
         state.failed_since_repair = []
+
+
+def _round(x: float | None) -> float | None:
+    return None if x is None else round(float(x), 4)

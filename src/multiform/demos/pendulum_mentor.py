@@ -330,3 +330,30 @@ class PendulumMentor:
                 ok = False
             labels.append(SegmentLabel(start, end, tag, bool(ok), self.name))
         return labels
+
+    def grade_trial(self, episode: Episode, swung_up: str = "P1", balanced: str = "P2") -> list[SegmentLabel]:
+        """The person's verdict on each stay of a robot's trial, from the trial's trace alone.
+
+        ``episode`` is the trial seen by place (its tags are the place the robot's token was in, as
+        :func:`multiform.learn.views.place_episode` gives). A swing-up stay succeeded when the robot
+        went on to balancing and the catch held (within ``fall_angle`` of upright for a second after
+        it); a balancing stay when the pendulum stayed within ``fall_angle`` for ``hold_time`` s.
+        The same tolerances as :meth:`label`; no simulator state is read.
+        """
+        th = episode.column("theta")
+        n, dt = episode.num_samples, episode.dt
+        second = int(round(1.0 / dt))
+        segments = episode.segments()
+        out = []
+        for i, (start, end, place) in enumerate(segments):
+            nxt = segments[i + 1] if i + 1 < len(segments) else None
+            if place == swung_up:
+                ok = (nxt is not None and nxt[2] == balanced and end + second <= n
+                      and bool(np.all(np.abs(th[end:end + second]) < self.fall_angle)))
+            elif place == balanced:
+                ok = (end - start) * dt >= self.hold_time - 1e-9 and bool(np.all(np.abs(th[start:end]) < self.fall_angle))
+            else:
+                continue
+            out.append(SegmentLabel(start, end, place, bool(ok), self.name))
+        return out
+

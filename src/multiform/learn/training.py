@@ -26,7 +26,7 @@ from .judge import Judge
 from .labels import LabelRecord, LabelStore, records_from_episode
 from .region import PlaceRegions
 from .condition import LearnedCondition, switch_windows, window_hits
-from .views import (MIRROR_SUFFIX, base_source, is_mirror, law_data, mirror_episode, place_episode, place_samples,
+from .views import (MIRROR_SUFFIX, LawData, base_source, is_mirror, law_data, mirror_episode, place_episode, place_samples,
                     switch_data, value_matrix)
 
 Progress = Callable[[str], None]
@@ -59,10 +59,25 @@ class LawSettings:
 
 
 def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool = True,
-            heldout: float = 0.2, seed: int = 0, settings: LawSettings | None = None) -> tuple[GPLaw, dict[str, Any]]:
-    """Fit one law; returns the law (refit on all its demos) and a summary with held-out NRMSE."""
+            heldout: float = 0.2, seed: int = 0, settings: LawSettings | None = None,
+            own: Sequence[Episode] = (), own_apn: APN | None = None, current: GPLaw | None = None
+            ) -> tuple[GPLaw, dict[str, Any]]:
+    """Fit one law; returns the law (refit on all its data) and a summary with held-out NRMSE.
+
+    ``own`` are the robot's own practice episodes whose labels mark the segments it graded
+    successful (:mod:`multiform.adapt.experience`), read through ``own_apn`` (the net that ran them,
+    default ``apn``): their samples join the mentor's, paired at the same tick (the robot's command
+    answers the state it read, with no reaction time). Held-out error is measured on whole held-out
+    episodes of both kinds; with ``current``, that law's error on the same held-out samples is
+    reported beside it (``heldout_nrmse_current``), so a refit shows before and after.
+    """
     s = settings or LawSettings()
     data = law_data(apn, episodes, law, success_only=success_only)
+    n_mentor = len(data.X)
+    if own:
+        mine = law_data(own_apn or apn, own, law, success_only=True, lag=0.0)
+        data = LawData(np.concatenate([data.X, mine.X]), np.concatenate([data.Y, mine.Y]),
+                       np.concatenate([data.episode, mine.episode + len(episodes)]))
     if len(data.X) < 20:
         raise ValueError(f"law {law}: only {len(data.X)} samples from {'successful ' if success_only else ''}"
                          f"segments; record more demonstrations")
@@ -77,18 +92,25 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
     def subset(idx: np.ndarray) -> np.ndarray:
         return idx if len(idx) <= s.max_train else np.sort(rng.choice(idx, s.max_train, replace=False))
 
+    def nrmse(pred: np.ndarray, Y: np.ndarray) -> float:
+        return float((np.sqrt(np.mean((pred - Y) ** 2, axis=0)) / np.maximum(Y.std(axis=0), 1e-12)).max())
+
     demos = np.unique(data.episode)
-    summary: dict[str, Any] = {"n": int(len(data.X)), "demos": int(len(demos)), "success_only": success_only}
+    summary: dict[str, Any] = {"n": int(len(data.X)), "demos": int(np.sum(demos < len(episodes))),
+                               "success_only": success_only}
+    if own:
+        summary.update(n_mentor=int(n_mentor), n_own=int(len(data.X) - n_mentor),
+                       own_episodes=int(np.sum(demos >= len(episodes))))
     if len(demos) >= 2 and heldout > 0:
         tr_d, te_d = split_episodes(len(demos), heldout, seed)
         tr = np.flatnonzero(np.isin(data.episode, demos[tr_d]))
         te = np.flatnonzero(np.isin(data.episode, demos[te_d]))
         fit_idx = subset(tr)
         probe = make().fit(data.X[fit_idx], data.Y[fit_idx])
-        pred = probe.predict(data.X[te])
-        err = np.sqrt(np.mean((pred - data.Y[te]) ** 2, axis=0)) / np.maximum(data.Y[te].std(axis=0), 1e-12)
-        summary["heldout_nrmse"] = float(err.max())
+        summary["heldout_nrmse"] = nrmse(probe.predict(data.X[te]), data.Y[te])
         summary["heldout_samples"] = int(len(te))
+        if current is not None:
+            summary["heldout_nrmse_current"] = nrmse(current.predict(data.X[te]), data.Y[te])
     fit_idx = subset(np.arange(len(data.X)))
     law_model = make().fit(data.X[fit_idx], data.Y[fit_idx])
     info = law_model.summary()

@@ -126,7 +126,9 @@ class Law:
     """A control law: which variables it reads, which commands it writes, its GP's mean function
     (``constant``, or ``linear`` for a maneuver that is a feedback about an operating point and
     should extrapolate as one), and the mentor's reaction time it is learned across (``lag`` s: the
-    state at t is paired with the command the mentor gave at t + lag)."""
+    state at t is paired with the command the mentor gave at t + lag). ``fit`` names the fitted
+    law a model directory runs for it (``laws/<fit>.npz``; default the law's own name): a refit
+    from the robot's own experience is a revision that points the law at a new fit."""
 
     name: str
     inputs: tuple[str, ...]
@@ -134,6 +136,11 @@ class Law:
     mean: str = "constant"
     description: str = ""
     lag: float = 0.0
+    fit: str = ""
+
+    @property
+    def fit_name(self) -> str:
+        return self.fit or self.name
 
     def to_data(self, commands: tuple[str, ...]) -> dict[str, Any]:
         out: dict[str, Any] = {"inputs": list(self.inputs)}
@@ -145,6 +152,8 @@ class Law:
             out["lag"] = self.lag
         if self.description:
             out["description"] = self.description
+        if self.fit:
+            out["fit"] = self.fit
         return out
 
 

@@ -1,4 +1,10 @@
-"""Revisions: the four ways the robot changes its net, each recorded with its reason and evidence.
+"""Revisions: the ways the robot changes its net, each recorded with its reason and evidence.
+
+The paper's four operators change the net's structure, Λ and C (set λ, set a condition, add a
+transition, add a place); two more come from learning by practice: **refit a law** (the law runs
+a new fit, learned from the mentor's demonstrations and the robot's own graded experience) and
+**revert** (back to an earlier version, when a revision made the robot's own success rate clearly
+worse).
 
 Every operator returns a new :class:`~multiform.petri.net.APN` and a :class:`Revision` that holds
 enough to replay it (``params``) and to show it (``before``/``after``). A :class:`History` keeps the
@@ -19,9 +25,9 @@ from typing import Any
 from ..errors import InvalidInput, Problem
 from ..io import append_jsonl, read_jsonl
 from .net import APN
-from .skillfile import parse_condition, parse_places, parse_transitions, load_skill
+from .skillfile import IDENT, load_skill, parse_condition, parse_places, parse_transitions, skill_from_data, skill_to_data
 
-OPERATORS = ("set_lambda", "set_condition", "add_transition", "add_place")
+OPERATORS = ("set_lambda", "set_condition", "add_transition", "add_place", "refit_law", "revert")
 
 
 @dataclass(frozen=True)
@@ -154,6 +160,36 @@ def add_place(apn: APN, place: str, spec: Mapping[str, Any] | None, reason: str,
     return out, rev
 
 
+def refit_law(apn: APN, law: str, fit: str, reason: str, evidence: Mapping[str, Any] | None = None,
+              version: int | None = None) -> tuple[APN, Revision]:
+    """Point ``law`` at the fitted law ``fit`` (a model directory's ``laws/<fit>.npz``)."""
+    if law not in apn.laws:
+        raise InvalidInput(f"unknown law {law!r}", element="refit_law")
+    if not isinstance(fit, str) or not IDENT.match(fit):
+        raise InvalidInput(f"not a valid fit name: {fit!r}", element=f"laws.{law}.fit")
+    old = apn.laws[law]
+    out = replace(apn, laws={**apn.laws, law: replace(old, fit="" if fit == law else fit)})
+    rev = Revision(version=_next_version(apn, version), operator="refit_law", target=law, reason=reason,
+                   params={"law": law, "fit": fit}, before={"fit": old.fit_name}, after={"fit": fit},
+                   evidence=dict(evidence or {}), time=_now())
+    return out, rev
+
+
+def revert(apn: APN, to_version: int, net: APN, reason: str, evidence: Mapping[str, Any] | None = None,
+           version: int | None = None) -> tuple[APN, Revision]:
+    """Go back to ``net``, the net as it was at ``to_version``; the revision holds that net whole,
+    so replaying it needs nothing but the record."""
+    if not isinstance(to_version, int) or to_version < 0:
+        raise InvalidInput(f"to_version must be a version number >= 0, got {to_version!r}", element="revert")
+    data = skill_to_data(net)
+    rev = Revision(version=_next_version(apn, version), operator="revert", target=f"version {to_version}",
+                   reason=reason, params={"to_version": to_version, "net": data},
+                   before={"laws": {k: v.fit_name for k, v in apn.laws.items()}},
+                   after={"laws": {k: v.fit_name for k, v in net.laws.items()}},
+                   evidence=dict(evidence or {}), time=_now())
+    return net, rev
+
+
 def apply(apn: APN, rev: Revision) -> APN:
     """Replay one revision on ``apn`` (the version before it)."""
     p = rev.params
@@ -166,6 +202,12 @@ def apply(apn: APN, rev: Revision) -> APN:
             out, _ = add_transition(apn, p["transition"], p["spec"], rev.reason)
         elif rev.operator == "add_place":
             out, _ = add_place(apn, p["place"], p["spec"], rev.reason)
+        elif rev.operator == "refit_law":
+            out, _ = refit_law(apn, p["law"], p["fit"], rev.reason)
+        elif rev.operator == "revert":
+            if not isinstance(p["net"], Mapping):
+                raise InvalidInput("a revert's net must be a skill mapping", element=f"version {rev.version}")
+            out = skill_from_data(p["net"], f"version {rev.version}")
         else:
             raise InvalidInput(f"unknown revision operator {rev.operator!r}", element=f"version {rev.version}")
     except KeyError as exc:

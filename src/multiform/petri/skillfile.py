@@ -27,7 +27,7 @@ TOP_KEYS = {"skill", "description", "env", "control_rate", "max_duration", "vari
             "mirror"}
 PLACE_KEYS = {"label", "final", "judge"}
 TRANSITION_KEYS = {"label", "in", "out", "law", "lambda", "condition"}
-LAW_KEYS = {"inputs", "outputs", "mean", "lag", "description"}
+LAW_KEYS = {"inputs", "outputs", "mean", "lag", "description", "fit"}
 MAX_LAG = 1.0                    # s: a reaction time, not a plan
 LAW_MEANS = ("constant", "linear")
 
@@ -106,6 +106,17 @@ def parse_skill(text: str, file: str = "<string>") -> APN:
     if not isinstance(data, Mapping):
         problems.append(Problem(file, "", "a skill file must be a mapping at the top level"))
         raise InvalidInput(problems)
+    apn = build_apn(data, file, problems)
+    if problems:
+        raise InvalidInput(problems)
+    assert apn is not None
+    return apn
+
+
+def skill_from_data(data: Mapping[str, Any], file: str = "<data>") -> APN:
+    """Build a net from skill-file data (:func:`skill_to_data`'s inverse); raises
+    :class:`InvalidInput` listing every problem."""
+    problems: list[Problem] = []
     apn = build_apn(data, file, problems)
     if problems:
         raise InvalidInput(problems)
@@ -397,9 +408,13 @@ def _laws(raw: Any, allowed: frozenset[str], commands: tuple[str, ...], bad) -> 
         if isinstance(lag, bool) or not isinstance(lag, (int, float)) or not 0.0 <= lag <= MAX_LAG:
             bad(f"{el}.lag", f"must be a number of seconds from 0 to {MAX_LAG}, got {lag!r}")
             lag = 0.0
+        fit = spec.get("fit", "")
+        if fit != "" and not (isinstance(fit, str) and IDENT.match(fit)):
+            bad(f"{el}.fit", f"must be the name of a fitted law (letters, digits, _), got {fit!r}")
+            fit = ""
         out[name] = Law(name=name, inputs=tuple(inputs), outputs=tuple(outputs),
                         mean=mean if mean in LAW_MEANS else "constant", description=desc if isinstance(desc, str) else "",
-                        lag=float(lag))
+                        lag=float(lag), fit=fit)
     return out
 
 

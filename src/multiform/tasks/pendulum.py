@@ -113,14 +113,34 @@ def robot_env_kwargs(inverse_model: bool) -> dict[str, Any]:
     return {"action_mode": "torque"} if inverse_model else {"action_mode": "ee"}
 
 
+MENTOR_EVERY = 3                   # the mentor grades every third trial of practice under evaluation conditions
+MENTOR_BUDGET = 20                 # and at most this many
+
+
+def mentor_grader():
+    """The scripted mentor watching a practice trial: one verdict per stay, from the trace alone."""
+    mentor = make_mentor()
+    return lambda episode, apn: mentor.grade_trial(episode)
+
+
 def scenarios() -> list[dict[str, Any]]:
-    """The paper's two practice scenarios, in order (the second starts from the first's net)."""
+    """The paper's two practice scenarios, in order (the second starts from the first's net), then
+    practice under the conditions the skill will meet, learning from its own graded experience
+    (the job gives it what is left of the practice budget)."""
     return [
         {"name": "a_strict", "title": "(a) the mentor's over-strict t1: exactly upright, exactly at rest, hand exactly centred",
          "options": trial_options, "config": {"failures_in_a_row": 3, "success_streak": 5}},
         {"name": "b_push", "title": "(b) pushes while balancing that the balance law cannot absorb",
          "options": trial_options, "perturb": lambda k: _push_in_place(1_000 + k),
          "config": {"failures_in_a_row": 3, "success_streak": 5}, "seed": 1},
+        {"name": "c_keep", "title": "(c) practice as evaluated (random starts, pushes on half the trials), "
+                                    "learning from its own graded experience",
+         "options": trial_options, "perturb": lambda k: _push_in_place(2_000 + k) if k % 4 < 2 else None,
+         "mentor": mentor_grader, "learn": True,
+         "config": {"failures_in_a_row": 3, "success_streak": 10**6, "learn": True, "explore": 0.5,
+                    "explore_every": 2, "refit_every": 10, "mentor_every": MENTOR_EVERY,
+                    "mentor_budget": MENTOR_BUDGET, "target_rate": TARGET_SUCCESS_RATE, "target_window": 20,
+                    "revert_window": 10}, "seed": 2},
     ]
 
 
@@ -171,7 +191,7 @@ def _exercises(model, rng) -> list:
     from ..petri.skillfile import parse_skill, skill_to_data
     from ..runtime.executor import Executor
     apn = model.history.version(0)
-    laws = model.laws()
+    laws = model.laws(apn)
     data = skill_to_data(apn)
     out = []
     for law, options, seconds in (
