@@ -1,0 +1,177 @@
+"""Learning from practice: own segments with provenance, refits as replayable revisions, exploration,
+the mentor's grade of a trial, and the revert of a revision that made things worse."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from multiform.adapt.experience import Experience, select_segments
+from multiform.adapt.explore import ExploringLaw
+from multiform.adapt.practice import Practice, PracticeConfig, PracticeState
+from multiform.demos.episode import Episode, SegmentLabel
+from multiform.demos.pendulum_mentor import PendulumMentor
+from multiform.learn.gp import GPLaw
+from multiform.learn.judge import SegmentGrade, TrialGrade
+from multiform.learn.training import fit_law
+from multiform.learn.views import law_data
+from multiform.model import SkillModel
+from multiform.petri.revision import History, refit_law
+from multiform.petri.skillfile import load_skill
+
+from .synthetic import make_trace
+
+
+def _values(n: int, theta: float = 0.1) -> np.ndarray:
+    """Rows of the pendulum skill's variables (theta, omega, x, xdot, s, c)."""
+    rng = np.random.default_rng(n)
+    v = np.zeros((n, 6))
+    v[:, 0] = theta + 0.01 * rng.standard_normal(n)
+    v[:, 1] = rng.standard_normal(n)
+    v[:, 2] = 0.1 * rng.standard_normal(n)
+    v[:, 4], v[:, 5] = np.sin(v[:, 0]), np.cos(v[:, 0])
+    return v
+
+
+def _trial(apn, outcome="success", seed=7):
+    trace = make_trace(apn, [(0, "t0"), (100, "t1"), (250, "t6")], _values(260), outcome)
+    trace.seed = seed
+    trace.commands[:, 0] = np.linspace(-1, 1, 260)
+    grade = TrialGrade(segments=[SegmentGrade("c_3", 0, 100, "P1", "P1", 0.9),
+                                 SegmentGrade("c_3", 100, 250, "P2", "P2", 0.6)],
+                       places={"P1": 0.9, "P2": 0.6}, score=0.6)
+    return trace, grade
+
+
+def test_own_segments_carry_provenance_and_stay_apart_from_the_mentors(tmp_path):
+    apn = load_skill("pendulum")
+    trace, grade = _trial(apn)
+    own = select_segments(apn, trace, grade, "c_3", "c", 3, margin=0.3)
+    # only the stay graded with a margin (0.9 >= 0.8) in a trial graded successful; 0.6 is not sure enough
+    assert [(s.place, s.start, s.end) for s in own] == [("P1", 0, 100)]
+    s = own[0]
+    assert (s.source, s.scenario, s.trial, s.seed, s.judge_score, s.mentor) == ("c_3", "c", 3, 7, 0.9, None)
+    assert s.laws == {"swing_up": "swing_up"} and s.transitions == ("t0",)
+    # the mentor's verdict on a stay overrides the robot's, both ways
+    mentor = {(0, 100): False, (100, 250): True}
+    assert [(x.place, x.mentor) for x in select_segments(apn, trace, grade, "c_3", "c", 3, 0.3, mentor)] == [("P2", True)]
+    # a trial the robot graded failed gives no own segment, however sure a stay's grade
+    failed = TrialGrade(segments=grade.segments, places=grade.places, score=0.2)
+    assert select_segments(apn, trace, failed, "c_3", "c", 3, 0.3) == []
+
+    store = Experience(tmp_path)
+    store.add(trace, own, "c_3")
+    store.add(trace, own, "c_3")                      # a resumed loop adds the same trial again: no duplicate
+    assert store.segments() == own
+    assert json.loads((tmp_path / "experience" / "segments.jsonl").read_text().splitlines()[0])["source"] == "c_3"
+    (ep,) = store.law_episodes("swing_up")
+    assert [(lab.start, lab.end, lab.labeller) for lab in ep.labels] == [(0, 100, "robot")]
+    assert store.law_episodes("balance") == []
+    d = law_data(apn, [ep], "swing_up", lag=0.0)
+    assert len(d.X) == 100 and np.allclose(d.Y[:, 0], trace.commands[:100, 0])
+
+
+def _mentor_episode(n: int = 400, seed: int = 0) -> Episode:
+    v = _values(n)
+    rng = np.random.default_rng(seed)
+    obs = np.column_stack([v[:, :4]])
+    tags = np.array(["t0"] * 200 + ["t1"] * (n - 200))
+    return Episode(obs=obs, actions=rng.standard_normal((n, 1)), transitions=tags,
+                   observation_names=("theta", "omega", "x", "xdot"), command_names=("v_cmd",), dt=0.01,
+                   seed=seed, labels=[SegmentLabel(0, 200, "t0", True), SegmentLabel(200, n, "t1", True)])
+
+
+def test_a_refit_reports_mentor_and_own_samples_apart_with_error_before_and_after(tmp_path):
+    apn = load_skill("pendulum")
+    mentor = [_mentor_episode(seed=i) for i in range(3)]
+    first, _ = fit_law(apn, mentor, "swing_up", seed=0)
+    trace, grade = _trial(apn)
+    store = Experience(tmp_path)
+    store.add(trace, select_segments(apn, trace, grade, "c_3", "c", 3), "c_3")
+    law, info = fit_law(apn, mentor, "swing_up", seed=0, own=store.law_episodes("swing_up"), current=first)
+    assert (info["n_mentor"], info["n_own"], info["own_episodes"], info["demos"]) == (600, 100, 1, 3)
+    assert info["n"] == 700 and np.isfinite(info["heldout_nrmse"]) and np.isfinite(info["heldout_nrmse_current"])
+
+
+def _model(tmp_path) -> SkillModel:
+    model = SkillModel.create(tmp_path / "model", "pendulum")
+    rng = np.random.default_rng(0)
+    X = rng.standard_normal((60, 4))
+    for name, shift in (("swing_up", 0.0), ("swing_up_r1", 5.0)):
+        model.save_law(name, GPLaw(n_hyper=60, n_restarts=0, random_state=0).fit(X, X[:, :1] + shift))
+    return model
+
+
+def test_a_refit_is_replayed_from_the_history(tmp_path):
+    model = _model(tmp_path)
+    v0 = model.apn
+    v1, rev = refit_law(v0, "swing_up", "swing_up_r1", "own data", {"own_segments": 12})
+    model.history.record(rev)
+    replayed = History(model.path / "skill.yaml").versions()
+    assert replayed == [v0, v1]
+    assert replayed[1].laws["swing_up"].fit_name == "swing_up_r1" and replayed[0].laws["swing_up"].fit_name == "swing_up"
+    x = np.zeros(4)
+    # the model runs the fit its net version names: version 0 the mentor-only law, version 1 the refit
+    assert model.laws(replayed[0])["swing_up"].predict_one(x)[0] == pytest.approx(
+        GPLaw.load(model.path / "laws" / "swing_up.npz").predict_one(x)[0])
+    assert model.laws()["swing_up"].predict_one(x)[0] == pytest.approx(
+        GPLaw.load(model.path / "laws" / "swing_up_r1.npz").predict_one(x)[0])
+    assert model.laws()["swing_up"].predict_one(x)[0] > model.laws(replayed[0])["swing_up"].predict_one(x)[0] + 3
+
+
+def _state(before: list[bool], after: list[bool], watch_version: int) -> PracticeState:
+    trials = [{"trial": i, "success": ok} for i, ok in enumerate(before + after)]
+    return PracticeState(trial=len(trials), trials=trials,
+                         watch={"before_version": watch_version - 1, "version": watch_version,
+                                "after_trial": len(before) - 1, "before": before})
+
+
+@pytest.mark.parametrize("after, reverted", [([True] * 2 + [False] * 8, True), ([True] * 7 + [False] * 3, False)])
+def test_a_revision_that_made_things_clearly_worse_is_reverted(tmp_path, after, reverted):
+    model = _model(tmp_path)
+    _, rev = refit_law(model.apn, "swing_up", "swing_up_r1", "own data")
+    model.history.record(rev)
+    practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, revert_window=10), name="c")
+    state = _state([True] * 9 + [False], after, watch_version=1)
+    practice._check_watch(state)
+    assert state.watch is None
+    if reverted:
+        assert model.version == 2 and model.history.revisions()[-1].operator == "revert"
+        assert model.apn == model.history.version(0) and model.apn.laws["swing_up"].fit_name == "swing_up"
+        assert state.revisions[-1]["operator"] == "revert" and "9/10 to 2/10" in state.revisions[-1]["reason"]
+    else:
+        assert model.version == 1 and model.apn.laws["swing_up"].fit_name == "swing_up_r1"
+
+
+def test_the_mentor_grades_a_trial_from_its_trace_alone():
+    """The trace seen by place holds nothing of the simulator: the pendulum's angle and the places."""
+    dt = 0.01
+    theta = np.concatenate([np.linspace(3.0, 0.2, 300), 0.1 * np.ones(600)])
+    tags = np.array(["P1"] * 300 + ["P2"] * 560 + ["done"] * 40)
+    ep = Episode(obs=theta[:, None], actions=np.zeros((900, 1)), transitions=tags, observation_names=("theta",),
+                 command_names=("v_cmd",), dt=dt, seed=0)
+    mentor = PendulumMentor()
+    labels = mentor.grade_trial(ep)
+    assert [(lab.transition, lab.start, lab.end, lab.success) for lab in labels] == [("P1", 0, 300, True),
+                                                                                    ("P2", 300, 860, True)]
+    fell = theta.copy()
+    fell[500:] = 1.2                                   # the catch held a second, then the pendulum fell
+    labels = mentor.grade_trial(Episode(obs=fell[:, None], actions=ep.actions, transitions=tags,
+                                        observation_names=("theta",), command_names=("v_cmd",), dt=dt, seed=0))
+    assert [lab.success for lab in labels] == [True, False]
+
+
+def test_exploration_is_seeded_smooth_and_of_the_asked_size():
+    class Zero:
+        def predict_one(self, x):
+            return np.zeros(1)
+
+    law = ExploringLaw(Zero(), np.array([0.2]), tau=0.1, dt=0.001, seed=3)
+    a = np.array([law.predict_one(None)[0] for _ in range(20000)])
+    law.reseed(3)
+    b = np.array([law.predict_one(None)[0] for _ in range(20000)])
+    assert np.array_equal(a, b)
+    assert 0.1 < a.std() < 0.3
+    assert np.corrcoef(a[:-1], a[1:])[0, 1] > 0.98          # smooth over 0.1 s, not white noise per tick
