@@ -254,13 +254,17 @@ def cmd_practice(args: argparse.Namespace) -> int:
     sc = scen[args.scenario]
     cfg = PracticeConfig(max_trials=args.max_trials, seed=args.seed + sc.get("seed", 0), **sc.get("config", {}))
     practice = Practice(model, args.out or Path(args.model) / "practice" / args.scenario, cfg,
-                        options=sc["options"], perturb=sc.get("perturb"), name=sc["name"])
+                        options=sc["options"], perturb=sc.get("perturb"), name=sc["name"],
+                        mentor=sc["mentor"]() if sc.get("mentor") else None)
 
     def show(state, trial):
         mark = "ok  " if trial["success"] else "FAIL"
         print(f"trial {trial['trial']:3d} v{trial['net_version']} {mark} {trial['outcome']:8s} "
               f"judges {trial['judge_score']}  fired {' '.join(trial['fired'][:12])}"
               + (" …" if len(trial["fired"]) > 12 else ""), flush=True)
+        if "mentor" in trial:
+            m = trial["mentor"]
+            print(f"  the mentor graded it: {m['agree']} of {m['stays']} stays as the robot did", flush=True)
         if state.revisions and state.revisions[-1].get("after_trial") == trial["trial"]:
             r = state.revisions[-1]
             print(f"  revision {r['version']}: {r['operator']} {r['target']} — {r['reason']}", flush=True)
@@ -274,7 +278,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from .job import Job, JobConfig
     cfg = JobConfig(demos=args.demos, eval_trials=args.eval_trials, ablation_trials=args.ablation_trials,
                     practice_max_trials=args.max_trials, workers=args.workers, seed=args.seed,
-                    videos=not args.no_video, inverse_model=not args.reference_controller)
+                    videos=not args.no_video, inverse_model=not args.reference_controller,
+                    learn=args.learn_from_practice, practice_budget=args.practice_budget)
     m = Job(args.task, args.out, cfg).run()
     sr = m["success_rate"]
     print(f"success rate {100 * sr['rate']:.1f} % ({sr['successes']}/{sr['trials']}; 95 % CI "
@@ -414,6 +419,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--no-video", action="store_true")
+    p.add_argument("--learn-from-practice", action="store_true",
+                   help="after the repair scenarios, keep practising as evaluated and learn from it: refit the laws "
+                        "from the robot's own graded successes, revise the judges with the mentor's grades of some trials")
+    p.add_argument("--practice-budget", type=int, default=100, help="practice trials of all scenarios together at most")
     p.add_argument("--reference-controller", action="store_true",
                    help="drive the arm with the env's model-based controller instead of the learned inverse model")
     p.set_defaults(func=cmd_demo)

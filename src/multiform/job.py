@@ -52,7 +52,8 @@ class JobConfig:
     ablation_trials: int = 100
     practice_max_trials: int = 30    # per repair scenario
     practice_budget: int = 100       # trials of all scenarios together; learning from practice gets the rest
-    learn: bool = True               # learn from practice (own experience, mentor's grades); False: repair only
+    learn: bool = False              # also learn from practice (own experience, the mentor's grades of some
+                                     # trials) in the task's learning scenario; False: practice repairs the net only
     workers: int = 2
     seed: int = 0
     push_fraction: float = 0.5
@@ -148,6 +149,7 @@ class Job:
                 "successes": sum(t["success"] for t in state.trials), "first_success_trial": first_ok,
                 "revisions": [{k: r[k] for k in ("version", "operator", "target", "reason", "after_trial")} for r in revs],
                 "outcomes": [t["outcome"] for t in state.trials], "state": str(folder / "state.json"),
+                "robot_seconds": round(sum(t["duration"] for t in state.trials), 1),
                 **(_learning_summary(state) if cfg.learn else {})}
             self.log(f"  {sc['name']}: {len(state.trials)} trials, revisions: "
                      + (", ".join(f"{r['operator']} {r['target']}" for r in revs) or "none")
@@ -218,6 +220,8 @@ class Job:
                                                  **{k: v for k, v in ds.summary().items() if k in ("samples", "samples_per_transition", "duration_s")}},
                  training=model.manifest.get("training", {}),
                  practice_trials=sum(s["trials"] for s in scenarios.values()),
+                 practice_robot_seconds=round(sum(s["robot_seconds"] for s in scenarios.values()), 1),
+                 mentor_labelled_trials=sum(s.get("mentor_labelled_trials", 0) for s in scenarios.values()),
                  scenarios=scenarios, revisions=revisions,
                  success_rate={k: main[k] for k in ("successes", "trials", "rate", "low", "high")},
                  self_assessed=main["self_assessed"], agreement_with_physical_check=main["agreement"],
@@ -250,8 +254,7 @@ def _learning_summary(state: Any) -> dict[str, Any]:
             "mentor_agreement": {"stays": stays, "agree": sum(g["agree"] for g in graded),
                                  "rate": round(sum(g["agree"] for g in graded) / stays, 4) if stays else None},
             "plain_trials": len(plain), "plain_successes": sum(t["success"] for t in plain),
-            "curve": [[t["trial"], bool(t["success"]), bool(t.get("explored"))] for t in state.trials],
-            "robot_seconds": round(sum(t["duration"] for t in state.trials), 1)}
+            "curve": [[t["trial"], bool(t["success"]), bool(t.get("explored"))] for t in state.trials]}
 
 
 def train_model(model: SkillModel, seed: int = 0, log: Log = print,

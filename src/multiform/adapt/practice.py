@@ -239,7 +239,7 @@ class Practice:
                                      f"{cfg.target_window} plain trials")
             elif self._constant_failure(state):
                 self._repair(state)
-            elif cfg.learn and state.trial - state.last_refit_trial - 1 >= cfg.refit_every:
+            if not state.done and cfg.learn and state.trial - state.last_refit_trial - 1 >= cfg.refit_every:
                 self._refit(state)
             self.save_state(state)
             if progress:

@@ -1,0 +1,132 @@
+"""Success against the number of demonstrations, with and without learning from practice.
+
+For each demonstration count and job seed the main pipeline runs twice on the same demonstrations:
+practice that repairs the net only (the paper's two scenarios), and practice that then goes on as
+evaluated and learns from it (own graded segments refit the laws, the mentor grades some trials,
+revisions that make things worse are reverted; ``multiform demo --learn-from-practice``). The
+second run starts from a copy of the first's folder, so both share the demos, the trained model and
+the repair scenarios. Each final skill is evaluated on the same randomised trials, half pushed.
+
+Prints one row per (demos, seed, variant): success with its Wilson 95 % interval, unpushed and
+pushed, practice trials, practice seconds of robot time (the anchor: PILCO needed 17.5 s of
+interaction for a cart-pole swing-up), mentor-labelled trials; then the median over seeds per
+(demos, variant). Writes ``OUT/data_efficiency.json`` and ``OUT/data_efficiency.png``.
+
+    .venv/bin/python benchmarks/bench_data_efficiency.py --out runs/data_efficiency \\
+        [--demos 5 10 20 40] [--seeds 0 1 2] [--trials 200] [--workers 2]
+
+About 6-10 minutes per pipeline on a 2-core machine (the whole default grid is 24 pipelines: hours);
+finished pipelines are reused from their folders, so an interrupted run goes on where it stopped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import warnings
+from pathlib import Path
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+os.environ.setdefault("MUJOCO_GL", "egl")
+warnings.filterwarnings("ignore", message="A single label was found", category=UserWarning)
+warnings.filterwarnings("ignore", message="y_pred contains classes not in y_true", category=UserWarning)
+
+from multiform.io import read_json, write_json  # noqa: E402
+from multiform.job import Job, JobConfig  # noqa: E402
+
+VARIANTS = ("repair only", "learning from practice")
+
+
+def pipeline(task: str, out: Path, demos: int, seed: int, learn: bool, trials: int, workers: int,
+             budget: int) -> dict:
+    """One pipeline's figures (its ``metrics.json``, reused when it exists)."""
+    metrics = out / "metrics.json"
+    if not metrics.exists():
+        cfg = JobConfig(demos=demos, seed=seed, eval_trials=trials, ablation_trials=0, videos=False,
+                        workers=workers, learn=learn, practice_budget=budget)
+        Job(task, out, cfg, log=lambda *a: None, progress=False).run()
+    m = read_json(metrics, "metrics")
+    learned = [s for s in m["scenarios"].values() if "mentor_labelled_trials" in s]
+    return {"demos": demos, "seed": seed, "variant": VARIANTS[learn], **m["success_rate"],
+            "pushed": [m["pushed"]["successes"], m["pushed"]["trials"]],
+            "unpushed": [m["success_rate"]["successes"] - m["pushed"]["successes"],
+                         m["success_rate"]["trials"] - m["pushed"]["trials"]],
+            "practice_trials": m["practice_trials"], "robot_seconds": m.get("practice_robot_seconds"),
+            "mentor_labelled_trials": m.get("mentor_labelled_trials", 0),
+            "own_segments": sum(s.get("own_segments", 0) for s in learned),
+            "mentor_agreement": learned[0]["mentor_agreement"]["rate"] if learned else None,
+            "revisions": [f"{r['operator']} {r['target']}" for r in m["revisions"]]}
+
+
+def plot(rows: list[dict], path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for variant, marker in zip(VARIANTS, "os"):
+        counts = sorted({r["demos"] for r in rows if r["variant"] == variant})
+        med = [statistics.median(r["rate"] for r in rows if r["variant"] == variant and r["demos"] == n) for n in counts]
+        ax.plot(counts, [100 * v for v in med], marker=marker, label=f"{variant} (median over seeds)")
+        pts = [(r["demos"], 100 * r["rate"]) for r in rows if r["variant"] == variant]
+        ax.scatter(*zip(*pts), marker=marker, alpha=0.35, s=18)
+    ax.set_xscale("log", base=2)
+    ax.set_xlabel("demonstrations")
+    ax.set_ylabel("success over the evaluation trials [%]")
+    ax.set_ylim(0, 102)
+    ax.axhline(95, color="grey", lw=0.8, ls="--")
+    ax.legend(loc="lower right")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--task", default="pendulum")
+    ap.add_argument("--out", default="runs/data_efficiency")
+    ap.add_argument("--demos", type=int, nargs="+", default=[5, 10, 20, 40])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--trials", type=int, default=200)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--budget", type=int, default=100, help="practice trials per pipeline at most")
+    ap.add_argument("--variants", nargs="+", choices=["repair", "learn"], default=["repair", "learn"])
+    args = ap.parse_args()
+    out = Path(args.out)
+    rows = []
+    print(f"{'demos':>5} {'seed':>4} {'variant':<24} {'success':>22} {'unpushed':>9} {'pushed':>8} "
+          f"{'practice':>8} {'robot s':>8} {'mentor':>6}", flush=True)
+    for demos in args.demos:
+        for seed in args.seeds:
+            base = out / f"d{demos}_s{seed}_repair"
+            for learn in (False, True):
+                if ("learn" if learn else "repair") not in args.variants:
+                    continue
+                folder = out / f"d{demos}_s{seed}_{'learn' if learn else 'repair'}"
+                if learn and not folder.exists() and (base / "model").exists():
+                    shutil.copytree(base, folder, ignore=shutil.ignore_patterns("metrics.json", "report.html"))
+                r = pipeline(args.task, folder, demos, seed, learn, args.trials, args.workers, args.budget)
+                rows.append(r)
+                print(f"{demos:5d} {seed:4d} {r['variant']:<24} {100 * r['rate']:6.1f} % ({100 * r['low']:4.1f}-"
+                      f"{100 * r['high']:5.1f} %) {r['unpushed'][0]:4d}/{r['unpushed'][1]:<4d} "
+                      f"{r['pushed'][0]:3d}/{r['pushed'][1]:<4d} {r['practice_trials']:8d} "
+                      f"{r['robot_seconds'] or 0:8.0f} {r['mentor_labelled_trials']:6d}", flush=True)
+    print("\nmedian over seeds:")
+    for demos in args.demos:
+        for variant in VARIANTS:
+            sel = [r for r in rows if r["demos"] == demos and r["variant"] == variant]
+            if sel:
+                rates = [100 * r["rate"] for r in sel]
+                print(f"  {demos:3d} demos, {variant:<24} {statistics.median(rates):5.1f} % "
+                      f"(range {min(rates):.1f}-{max(rates):.1f} %, {len(sel)} seeds)")
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(out / "data_efficiency.json", rows)
+    plot(rows, out / "data_efficiency.png")
+    print(f"wrote {out / 'data_efficiency.json'} and {out / 'data_efficiency.png'}")
+
+
+if __name__ == "__main__":
+    main()
