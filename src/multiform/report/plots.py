@@ -90,12 +90,19 @@ def practice_plot(trials: Sequence[dict[str, Any]], revisions: Sequence[dict[str
     idx = np.arange(1, len(trials) + 1)
     ok = np.array([tr["success"] for tr in trials], dtype=float)
     score = np.array([tr.get("judge_score", np.nan) for tr in trials], dtype=float)
-    ax.scatter(idx, ok, c=["#1b9e77" if s else "#c0392b" for s in ok], s=18, zorder=3, label="outcome")
+    explored = np.array([bool(tr.get("explored")) for tr in trials], dtype=bool)
+    colours = ["#1b9e77" if s else "#c0392b" for s in ok]
+    ax.scatter(idx[~explored], ok[~explored], c=[c for c, e in zip(colours, explored) if not e], s=18, zorder=3,
+               label="outcome")
+    if explored.any():
+        ax.scatter(idx[explored], ok[explored], facecolors="none", edgecolors=[c for c, e in zip(colours, explored) if e],
+                   s=18, zorder=3, label="outcome, exploring trial")
     ax.plot(idx, score, color="#7570b3", lw=1, marker=".", ms=4, label="judges' score")
-    if len(ok) >= 2:
-        w = min(5, len(ok))
-        ax.plot(idx, np.convolve(ok, np.ones(w) / w, mode="full")[: len(ok)], color="#555", lw=1, ls=":",
-                label=f"success rate (last {w})")
+    plain = ~explored
+    if plain.sum() >= 2:            # the skill as it is: the exploring trials try variations of it
+        w = min(10 if explored.any() else 5, int(plain.sum()))
+        ax.plot(idx[plain], np.convolve(ok[plain], np.ones(w) / w, mode="full")[: int(plain.sum())], color="#555",
+                lw=1, ls=":", label=f"success rate (last {w}{' plain' if explored.any() else ''})")
     for r in revisions:
         k = r.get("after_trial")
         if k is None:
