@@ -155,7 +155,7 @@ class Practice:
         state = PracticeState(**{k: v for k, v in d.items() if k in known})
         # A revision recorded just before a kill, after the state was last saved: adopt it.
         recorded = self.model.history.revisions()
-        mine = {r["version"] for r in state.revisions}
+        mine = {r["version"] for r in state.revisions if r.get("version") is not None}
         for r in recorded:
             if r.version not in mine and r.version > max(mine, default=0) and state.trials \
                     and r.time >= state.trials[-1].get("time", ""):
