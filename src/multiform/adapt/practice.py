@@ -153,10 +153,13 @@ class Practice:
         d = read_json(self.state_path, "practice state")
         known = PracticeState.__dataclass_fields__
         state = PracticeState(**{k: v for k, v in d.items() if k in known})
-        # A revision recorded just before a kill, after the state was last saved: adopt it.
+        # A revision this scenario recorded just before a kill, after the state was last saved: adopt
+        # it (a finished scenario adopts nothing, and no scenario adopts another's revisions).
         recorded = self.model.history.revisions()
         mine = {r["version"] for r in state.revisions if r.get("version") is not None}
         for r in recorded:
+            if state.done or r.evidence.get("scenario", self.name) != self.name:
+                continue
             if r.version not in mine and r.version > max(mine, default=0) and state.trials \
                     and r.time >= state.trials[-1].get("time", ""):
                 state.revisions.append({"version": r.version, "operator": r.operator, "target": r.target,
@@ -352,7 +355,7 @@ class Practice:
 
     def _record(self, state: PracticeState, rev: Revision, diagnosis: dict[str, Any] | None = None) -> int:
         v = self.model.history.next_version()
-        rev = replace(rev, version=v)
+        rev = replace(rev, version=v, evidence={**rev.evidence, "scenario": self.name})
         self.model.history.record(rev)
         state.revisions.append({"version": v, "operator": rev.operator, "target": rev.target, "reason": rev.reason,
                                 "after_trial": state.trial - 1, "scenario": self.name,
