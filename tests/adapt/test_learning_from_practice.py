@@ -175,3 +175,17 @@ def test_exploration_is_seeded_smooth_and_of_the_asked_size():
     assert np.array_equal(a, b)
     assert 0.1 < a.std() < 0.3
     assert np.corrcoef(a[:-1], a[1:])[0, 1] > 0.98          # smooth over 0.1 s, not white noise per tick
+
+
+def test_a_scenario_adopts_only_its_own_revisions_after_a_kill(tmp_path):
+    """A revision recorded after a scenario's last saved trial is its own only if it says so: another
+    scenario's refits (or a finished scenario) are never adopted on resume."""
+    from multiform.io import write_json
+    model = _model(tmp_path)
+    folder = tmp_path / "a"
+    write_json(folder / "state.json", {"trial": 3, "trials": [{"trial": i, "success": False, "time": "2000-01-01T00:00:00"}
+                                                              for i in range(3)], "revisions": [], "done": False})
+    _, rev = refit_law(model.apn, "swing_up", "swing_up_r1", "own data", {"scenario": "c"})
+    model.history.record(rev)
+    assert Practice(model, folder, name="a").load_state().revisions == []
+    assert [r["version"] for r in Practice(model, folder, name="c").load_state().revisions] == [1]
