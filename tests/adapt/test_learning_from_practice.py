@@ -189,3 +189,20 @@ def test_a_scenario_adopts_only_its_own_revisions_after_a_kill(tmp_path):
     model.history.record(rev)
     assert Practice(model, folder, name="a").load_state().revisions == []
     assert [r["version"] for r in Practice(model, folder, name="c").load_state().revisions] == [1]
+
+
+def test_a_law_learned_with_mirror_images_is_symmetric():
+    """A skill that declares its mirror symmetry can give its laws each episode's mirror image: the
+    law then commands the mirror of its command in the mirror of a state (no drift to one side)."""
+    from multiform.learn.training import LawSettings
+    apn = load_skill("pendulum")
+    mentor = [_mentor_episode(seed=i) for i in range(3)]
+    for ep in mentor:
+        ep.actions[:, 0] = 0.5 + ep.obs[:, 1]          # a bias to one side, a gain on omega
+    plain, p_info = fit_law(apn, mentor, "swing_up", seed=0)
+    both, m_info = fit_law(apn, mentor, "swing_up", seed=0, settings=LawSettings(mirror=True))
+    assert m_info["n"] == 2 * p_info["n"]
+    x = np.array([0.1, 1.0, 0.5, 0.05])                 # s, c, omega, x
+    mx = x * np.array([-1, 1, -1, -1])
+    assert both.predict_one(x)[0] == pytest.approx(-both.predict_one(mx)[0], abs=0.05)
+    assert abs(plain.predict_one(x)[0] + plain.predict_one(mx)[0]) > 0.5   # the one-sided law keeps its bias

@@ -56,6 +56,7 @@ class LawSettings:
     n_inducing: int = 300
     max_train: int = 20000           # a random subset above this (the sparse posterior does not need more)
     mean: str | None = None          # GP mean function; None: the skill file's choice per law
+    mirror: bool = False             # also learn from each episode's mirror image (skills that declare one)
 
 
 def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool = True,
@@ -72,10 +73,21 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
     reported beside it (``heldout_nrmse_current``), so a refit shows before and after.
     """
     s = settings or LawSettings()
-    data = law_data(apn, episodes, law, success_only=success_only)
+    mirror = s.mirror and bool(apn.mirror)
+
+    def both(d: LawData, net: APN, eps: Sequence[Episode], lag: float | None, only: bool) -> LawData:
+        """``d`` and, with ``mirror``, the same episodes' mirror images (sharing their episode index,
+        so an image is held out with its episode)."""
+        if not mirror:
+            return d
+        m = law_data(net, [mirror_episode(net, ep) for ep in eps], law, success_only=only, lag=lag)
+        return LawData(np.concatenate([d.X, m.X]), np.concatenate([d.Y, m.Y]), np.concatenate([d.episode, m.episode]))
+
+    data = both(law_data(apn, episodes, law, success_only=success_only), apn, episodes, None, success_only)
     n_mentor = len(data.X)
     if own:
-        mine = law_data(own_apn or apn, own, law, success_only=True, lag=0.0)
+        net = own_apn or apn
+        mine = both(law_data(net, own, law, success_only=True, lag=0.0), net, own, 0.0, True)
         data = LawData(np.concatenate([data.X, mine.X]), np.concatenate([data.Y, mine.Y]),
                        np.concatenate([data.episode, mine.episode + len(episodes)]))
     if len(data.X) < 20:
