@@ -242,8 +242,9 @@ class Practice:
                                      f"{cfg.target_window} plain trials")
             elif self._constant_failure(state):
                 self._repair(state)
-            if not state.done and cfg.learn and state.trial - state.last_refit_trial - 1 >= cfg.refit_every:
-                self._refit(state)
+            if not state.done and cfg.learn and state.trial - state.last_refit_trial - 1 >= cfg.refit_every \
+                    and cfg.max_trials - state.trial >= self._watch_trials():
+                self._refit(state)          # only while enough trials are left to watch it
             self.save_state(state)
             if progress:
                 progress(state, summary)
@@ -363,6 +364,11 @@ class Practice:
         return v
 
     # -- watching revisions ----------------------------------------------------------------------------
+    def _watch_trials(self) -> int:
+        """Trials it takes to see ``revert_window`` plain ones."""
+        cfg = self.config
+        return cfg.revert_window * (cfg.explore_every if cfg.explore > 0 and cfg.explore_every > 1 else 1)
+
     def _plain(self, state: PracticeState) -> list[dict[str, Any]]:
         return [t for t in state.trials if not t.get("explored")]
 
