@@ -91,8 +91,9 @@ def test_a_refit_reports_mentor_and_own_samples_apart_with_error_before_and_afte
     store = Experience(tmp_path)
     store.add(trace, select_segments(apn, trace, grade, "c_3", "c", 3), "c_3")
     law, info = fit_law(apn, mentor, "swing_up", seed=0, own=store.law_episodes("swing_up"), current=first)
-    assert (info["n_mentor"], info["n_own"], info["own_episodes"], info["demos"]) == (600, 100, 1, 3)
-    assert info["n"] == 700 and np.isfinite(info["heldout_nrmse"]) and np.isfinite(info["heldout_nrmse_current"])
+    # every episode also gives its mirror image (the pendulum skill declares one), of both kinds
+    assert (info["n_mentor"], info["n_own"], info["own_episodes"], info["demos"]) == (1200, 200, 1, 3)
+    assert info["n"] == 1400 and np.isfinite(info["heldout_nrmse"]) and np.isfinite(info["heldout_nrmse_current"])
 
 
 def _model(tmp_path) -> SkillModel:
@@ -199,7 +200,7 @@ def test_a_law_learned_with_mirror_images_is_symmetric():
     mentor = [_mentor_episode(seed=i) for i in range(3)]
     for ep in mentor:
         ep.actions[:, 0] = 0.5 + ep.obs[:, 1]          # a bias to one side, a gain on omega
-    plain, p_info = fit_law(apn, mentor, "swing_up", seed=0)
+    plain, p_info = fit_law(apn, mentor, "swing_up", seed=0, settings=LawSettings(mirror=False))
     both, m_info = fit_law(apn, mentor, "swing_up", seed=0, settings=LawSettings(mirror=True))
     assert m_info["n"] == 2 * p_info["n"]
     x = np.array([0.1, 1.0, 0.5, 0.05])                 # s, c, omega, x
