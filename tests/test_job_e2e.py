@@ -155,3 +155,43 @@ def test_inverse_model_trained_beside_the_laws_is_the_one_trained_after_them(run
             names = [k for k in a.files if k != "__format__"]
             assert names and names == [k for k in b.files if k != "__format__"], rel
             assert all(np.array_equal(a[k], b[k]) for k in names), rel
+
+
+def _learning_practice(model_dir: Path, folder: Path):
+    from multiform.adapt.practice import Practice, PracticeConfig
+    from multiform.tasks import pendulum as task
+    sc = {s["name"]: s for s in task.scenarios()}["c_keep"]
+    cfg = PracticeConfig(**{**sc["config"], "max_trials": 12, "refit_every": 4, "refit_min_segments": 1,
+                            "revert_window": 2, "mentor_every": 3, "mentor_budget": 2, "seed": 4})
+    return Practice(SkillModel(model_dir), folder, cfg, options=sc["options"], perturb=sc["perturb"], name="c_keep",
+                    mentor=sc["mentor"]())
+
+
+def test_learning_from_practice_resumes_as_if_never_stopped(run, tmp_path):
+    """Practice that learns from its own graded trials, stopped after 5 trials and run again, ends where
+    an uninterrupted run ends: the same trials, the same own segments with their provenance, the same
+    refits and mentor grades; the own-experience data of the first part is kept, nothing is added twice."""
+    states, segments, histories = [], [], []
+    for stop in (None, 5):
+        model_dir = tmp_path / f"model_{stop}"
+        shutil.copytree(run / "model", model_dir, ignore=shutil.ignore_patterns("practice", "experience"))
+        folder = tmp_path / f"practice_{stop}"
+        if stop is not None:
+            _learning_practice(model_dir, folder).run(stop_after=stop)
+            first = (model_dir / "experience" / "segments.jsonl").read_text() \
+                if (model_dir / "experience" / "segments.jsonl").exists() else ""
+        state = _learning_practice(model_dir, folder).run()
+        if stop is not None:
+            assert (model_dir / "experience" / "segments.jsonl").read_text().startswith(first)
+        strip = lambda t: {k: v for k, v in t.items() if k not in ("wall", "time")}  # noqa: E731
+        states.append([strip(t) for t in state.trials])
+        segs = [json.loads(line) for line in (model_dir / "experience" / "segments.jsonl").read_text().splitlines()]
+        assert len({(s["source"], s["start"], s["end"]) for s in segs}) == len(segs)
+        assert all({"trial", "net_version", "laws", "judge_score", "scenario", "seed"} <= set(s) for s in segs)
+        segments.append(segs)
+        histories.append([(json.loads(line)["operator"], json.loads(line)["target"])
+                          for line in (model_dir / "skill.history.jsonl").read_text().splitlines()])
+    assert states[0] == states[1] and segments[0] == segments[1] and histories[0] == histories[1]
+    assert len(states[0]) == 12 and segments[0], "no own segment in 12 trials: nothing was learned from"
+    assert any(op == "refit_law" for op, _ in histories[0])
+    assert sum("mentor" in t for t in states[0]) == 2

@@ -318,7 +318,8 @@ class Practice:
         made = []
         for law, spec in apn.laws.items():
             mine = [s for s in segments if law in s.laws]
-            new = [s for s in mine if s.trial > self._fit_trial(law) or s.scenario != self._fit_scenario(law)]
+            fitted = self._fitted_sources(law)
+            new = [s for s in mine if s.source not in fitted]
             if len(new) < cfg.refit_min_segments:
                 continue
             own = self.experience.law_episodes(law, mine)
@@ -341,18 +342,12 @@ class Practice:
         if made:
             self._watch(state, made[0] - 1, made[-1])
 
-    def _fit_trial(self, law: str) -> int:
-        """The last trial of this scenario a recorded refit of ``law`` had seen (-1 if none)."""
-        for r in reversed(self.model.history.revisions()):
-            if r.operator == "refit_law" and r.target == law and r.evidence.get("scenario") == self.name:
-                return int(r.evidence.get("after_trial", -1))
-        return -1
-
-    def _fit_scenario(self, law: str) -> str:
+    def _fitted_sources(self, law: str) -> set[str]:
+        """The trials whose own segments the last recorded refit of ``law`` learned from."""
         for r in reversed(self.model.history.revisions()):
             if r.operator == "refit_law" and r.target == law:
-                return str(r.evidence.get("scenario", ""))
-        return self.name
+                return set(r.evidence.get("sources", ()))
+        return set()
 
     def _record(self, state: PracticeState, rev: Revision, diagnosis: dict[str, Any] | None = None) -> int:
         v = self.model.history.next_version()
