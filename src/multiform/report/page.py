@@ -67,6 +67,20 @@ def _table(rows: list[dict[str, Any]], cols: list[tuple[str, str]]) -> str:
     return f"<table><tr>{head}</tr>{''.join(body)}</table>"
 
 
+def _learning(s: dict) -> str:
+    """One sentence on what a scenario that learned from practice did ("" for the others)."""
+    if "mentor_labelled_trials" not in s:
+        return ""
+    agree = s.get("mentor_agreement", {})
+    text = (f"{s['trials']} trials, every other one exploring; {s['plain_successes']} of {s['plain_trials']} plain trials "
+            f"succeeded; {s['own_segments']} segments of its own graded successful joined its laws' training data; "
+            f"the mentor graded {s['mentor_labelled_trials']} trials")
+    if agree.get("stays"):
+        text += f" and agreed with the robot's own grade on {agree['agree']} of {agree['stays']} stays"
+    stop = s.get("stop_reason", "")
+    return text + f"; {s.get('robot_seconds', 0):.0f} s of robot time." + (f" Stopped: {stop}." if stop else "")
+
+
 def build_report(run_dir: str | os.PathLike, metrics: dict[str, Any] | None = None) -> Path:
     """Write ``run_dir/report.html`` from ``metrics`` (default: ``run_dir/metrics.json``)."""
     run = Path(run_dir)
@@ -112,7 +126,7 @@ def build_report(run_dir: str | os.PathLike, metrics: dict[str, Any] | None = No
     if scen:
         parts.append("<h2>Practice scenarios</h2>")
         for key, s in scen.items():
-            parts.append(f"<h3>{_e(s.get('title', key))}</h3><p>{_e(s.get('summary', ''))}</p>")
+            parts.append(f"<h3>{_e(s.get('title', key))}</h3><p>{_e(s.get('summary', '') or _learning(s))}</p>")
             if s.get("plot"):
                 parts.append(_img(s["plot"], f"practice {key}"))
     plots = art.get("plots", {})
