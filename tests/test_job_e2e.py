@@ -162,7 +162,8 @@ def _learning_practice(model_dir: Path, folder: Path):
     from multiform.tasks import pendulum as task
     sc = {s["name"]: s for s in task.scenarios()}["c_keep"]
     cfg = PracticeConfig(**{**sc["config"], "max_trials": 12, "refit_every": 4, "refit_min_segments": 1,
-                            "revert_window": 2, "mentor_every": 3, "mentor_budget": 2, "seed": 4})
+                            "revert_window": 2, "mentor_every": 3, "mentor_budget": 2, "seed": 4,
+                            "target_rate": 0.0})     # refit even when the skill already succeeds
     return Practice(SkillModel(model_dir), folder, cfg, options=sc["options"], perturb=sc["perturb"], name="c_keep",
                     mentor=sc["mentor"]())
 

@@ -94,6 +94,19 @@ def test_a_refit_reports_mentor_and_own_samples_apart_with_error_before_and_afte
     # every episode also gives its mirror image (the pendulum skill declares one), of both kinds
     assert (info["n_mentor"], info["n_own"], info["own_episodes"], info["demos"]) == (1200, 200, 1, 3)
     assert info["n"] == 1400 and np.isfinite(info["heldout_nrmse"]) and np.isfinite(info["heldout_nrmse_current"])
+    # the robot's own samples never outweigh the mentor's beyond the set ratio
+    from multiform.learn.training import LawSettings
+    _, capped = fit_law(apn, mentor, "swing_up", seed=0, own=store.law_episodes("swing_up"),
+                        settings=LawSettings(own_ratio=0.1))
+    assert (capped["n_mentor"], capped["n_own"]) == (1200, 120)
+
+
+def test_a_skill_at_its_target_is_not_refitted(tmp_path):
+    model = _model(tmp_path)
+    practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, target_rate=0.9), name="c")
+    state = PracticeState(trial=10, trials=[{"trial": i, "success": True} for i in range(10)])
+    practice._refit(state)
+    assert model.version == 0 and state.last_refit_trial == 9
 
 
 def _model(tmp_path) -> SkillModel:

@@ -244,7 +244,7 @@ class Practice:
                 self._repair(state)
             if not state.done and cfg.learn and state.trial - state.last_refit_trial - 1 >= cfg.refit_every \
                     and cfg.max_trials - state.trial >= self._watch_trials():
-                self._refit(state)          # only while enough trials are left to watch it
+                self._refit(state)
             self.save_state(state)
             if progress:
                 progress(state, summary)
@@ -310,9 +310,15 @@ class Practice:
                        and is_mentor(r.labeller)})
 
     def _refit(self, state: PracticeState) -> None:
-        """Refit each law that has new own segments since its fit; one ``refit_law`` revision each."""
+        """Refit each law that has new own segments since its fit; one ``refit_law`` revision each.
+
+        Called every ``refit_every`` trials while enough trials are left to watch the refit; a skill
+        whose plain trials since the last look all reached the target is left as it is."""
         cfg = self.config
+        recent = [t for t in self._plain(state) if t["trial"] > state.last_refit_trial]
         state.last_refit_trial = state.trial - 1
+        if cfg.target_rate > 0 and recent and sum(t["success"] for t in recent) / len(recent) >= cfg.target_rate:
+            return
         apn = self.model.apn
         segments = self.experience.segments()
         made = []

@@ -56,6 +56,9 @@ class LawSettings:
     n_inducing: int = 300
     max_train: int = 20000           # a random subset above this (the sparse posterior does not need more)
     mean: str | None = None          # GP mean function; None: the skill file's choice per law
+    own_ratio: float = 1.0           # the robot's own samples at most this many times the mentor's (a random
+                                     # subset): on-policy swing-ups from hanging, 5x the mentor's data, drowned
+                                     # its recoveries from pushes (10 demos, seed 0: pushed practice trials failed)
     mirror: bool = True              # also learn from each episode's mirror image (skills that declare one):
                                      # with 10 demos, a swing-up learned from one image drifted to one end
                                      # of the stroke and stalled there (seed 2: 4/40 trials; both: 20/40)
@@ -90,6 +93,10 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
     if own:
         net = own_apn or apn
         mine = both(law_data(net, own, law, success_only=True, lag=0.0), net, own, 0.0, True)
+        cap = int(s.own_ratio * n_mentor)
+        if len(mine.X) > cap:
+            keep = np.sort(np.random.default_rng([seed, 1]).choice(len(mine.X), cap, replace=False))
+            mine = LawData(mine.X[keep], mine.Y[keep], mine.episode[keep])
         data = LawData(np.concatenate([data.X, mine.X]), np.concatenate([data.Y, mine.Y]),
                        np.concatenate([data.episode, mine.episode + len(episodes)]))
     if len(data.X) < 20:
@@ -113,7 +120,7 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
     summary: dict[str, Any] = {"n": int(len(data.X)), "demos": int(np.sum(demos < len(episodes))),
                                "success_only": success_only}
     if own:
-        summary.update(n_mentor=int(n_mentor), n_own=int(len(data.X) - n_mentor),
+        summary.update(n_mentor=int(n_mentor), n_own=int(len(data.X) - n_mentor), own_ratio=s.own_ratio,
                        own_episodes=int(np.sum(demos >= len(episodes))))
     if len(demos) >= 2 and heldout > 0:
         tr_d, te_d = split_episodes(len(demos), heldout, seed)
