@@ -297,10 +297,10 @@ class Practice:
         if records:
             self.experience.keep_trace(trace, source)
             self.model.labels.add_many(records)
-            mine = {g["source"]: self.experience.episode(g["source"])
-                    for g in ({"source": s} for s in self._mentor_sources()) if self.experience.trace_path(g["source"]).exists()}
-            mine[source] = ep
-            info = refit_judges(self.model, sorted({r.place for r in records}), mine, seed=self.config.seed)
+            graded = {s: self.experience.episode(s) for s in self._mentor_sources()
+                      if self.experience.trace_path(s).exists()}
+            info = refit_judges(self.model, sorted({r.place for r in records}), {**graded, source: ep},
+                                seed=self.config.seed)
             account["revised"] = {p: {k: v for k, v in d.items() if k in ("segments", "cv_score", "kernel")}
                                   for p, d in info.items()}
         return verdicts, account
