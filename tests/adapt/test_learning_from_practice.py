@@ -220,3 +220,16 @@ def test_a_law_learned_with_mirror_images_is_symmetric():
     mx = x * np.array([-1, 1, -1, -1])
     assert both.predict_one(x)[0] == pytest.approx(-both.predict_one(mx)[0], abs=0.05)
     assert abs(plain.predict_one(x)[0] + plain.predict_one(mx)[0]) > 0.5   # the one-sided law keeps its bias
+
+
+def test_the_target_counts_only_trials_of_the_net_as_it_is_now(tmp_path):
+    model = _model(tmp_path)
+    practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, target_rate=0.9, target_window=4), name="c")
+    trials = [{"trial": i, "success": True, "net_version": 0} for i in range(6)]
+    assert practice._reached_target(PracticeState(trial=6, trials=trials))
+    _, rev = refit_law(model.apn, "swing_up", "swing_up_r1", "own data")
+    model.history.record(rev)
+    later = trials + [{"trial": 6 + i, "success": True, "net_version": 1} for i in range(3)]
+    assert not practice._reached_target(PracticeState(trial=9, trials=later))
+    assert practice._reached_target(PracticeState(trial=10, trials=later + [{"trial": 9, "success": True,
+                                                                              "net_version": 1}]))

@@ -378,8 +378,11 @@ class Practice:
         return sum(t["success"] for t in last) / len(last) if last else 0.0
 
     def _reached_target(self, state: PracticeState) -> bool:
+        """The last ``target_window`` plain trials, all of the net as it is now, reach the target (a
+        window reaching back before a refit would credit the new laws with the old ones' successes)."""
         cfg = self.config
-        return cfg.target_rate > 0 and len(self._plain(state)) >= cfg.target_window \
+        current = [t for t in self._plain(state) if t.get("net_version") == self.model.version]
+        return cfg.target_rate > 0 and len(current) >= cfg.target_window \
             and self._plain_rate(state, cfg.target_window) >= cfg.target_rate
 
     def _watch(self, state: PracticeState, before_version: int, version: int) -> None:
