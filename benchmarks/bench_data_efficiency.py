@@ -68,6 +68,8 @@ def plot(rows: list[dict], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(6, 4))
     for variant, marker in zip(VARIANTS, "os"):
         counts = sorted({r["demos"] for r in rows if r["variant"] == variant})
+        if not counts:
+            continue
         med = [statistics.median(r["rate"] for r in rows if r["variant"] == variant and r["demos"] == n) for n in counts]
         ax.plot(counts, [100 * v for v in med], marker=marker, label=f"{variant} (median over seeds)")
         pts = [(r["demos"], 100 * r["rate"]) for r in rows if r["variant"] == variant]
