@@ -223,7 +223,7 @@ class Practice:
                 summary["explored"] = explores
             if cfg.learn and grade is not None:
                 summary.update(self._learn_from(state, k, trace, grade, executor.apn))
-                if summary.get("judges_revised"):
+                if "revised" in summary.get("mentor", {}):
                     judges = self.model.judges()
             state.trials.append(summary)
             if not success:
@@ -272,7 +272,6 @@ class Practice:
             verdicts, account = self._mentor_grades(source, trace, grade, apn)
             state.mentor_graded.append({"trial": k, **account})
             out["mentor"] = account
-            out["judges_revised"] = bool(account.get("revised"))
         own = select_segments(apn, trace, grade, source, self.name, k, cfg.margin, verdicts)
         if own:
             self.experience.add(trace, own, source)
@@ -322,24 +321,23 @@ class Practice:
         apn = self.model.apn
         segments = self.experience.segments()
         made = []
-        for law, spec in apn.laws.items():
+        for law in apn.laws:
             mine = [s for s in segments if law in s.laws]
-            fitted = self._fitted_sources(law)
-            new = [s for s in mine if s.source not in fitted]
+            seen = self._fitted_sources(law)
+            new = [s for s in mine if s.source not in seen]
             if len(new) < cfg.refit_min_segments:
                 continue
             own = self.experience.law_episodes(law, mine)
             current = self.model.laws(apn).get(law)
-            fitted, info = fit_law(self.model.history.version(0), self.model.episodes, law, seed=cfg.seed,
-                                   own=own, own_apn=apn, current=current)
+            refitted, info = fit_law(self.model.history.version(0), self.model.episodes, law, seed=cfg.seed,
+                                     own=own, own_apn=apn, current=current)
             fit = self.learners.fresh_law(law)
-            self.model.save_law(fit, fitted)
+            self.model.save_law(fit, refitted)
             evidence = {"own_segments": len(mine), "new_own_segments": len(new), "own_trials": len(own),
                         "own_samples": info.get("n_own"), "mentor_samples": info.get("n_mentor"),
                         "heldout_nrmse_before": _round(info.get("heldout_nrmse_current")),
                         "heldout_nrmse_after": _round(info.get("heldout_nrmse")),
-                        "sources": sorted({s.source for s in mine}), "after_trial": state.trial - 1,
-                        "scenario": self.name}
+                        "sources": sorted({s.source for s in mine}), "after_trial": state.trial - 1}
             _, rev = refit_law(apn, law, fit, f"{len(new)} new segments of its own graded successful "
                                               f"(score >= {0.5 + cfg.margin:.2f}); refit from the mentor's and its own data",
                                evidence)
@@ -414,8 +412,7 @@ class Practice:
         _, rev = revert(self.model.apn, w["before_version"], target,
                         f"own success rate fell from {sum(before)}/{len(before)} to {sum(after)}/{len(after)} plain "
                         f"trials after version {w['version']} (one-sided Fisher p = {p:.3f})",
-                        {"before": table[0], "after": table[1], "p": round(p, 4), "reverted": w["version"],
-                         "scenario": self.name})
+                        {"before": table[0], "after": table[1], "p": round(p, 4), "reverted": w["version"]})
         self._record(state, rev)
 
     def _constant_failure(self, state: PracticeState) -> bool:
