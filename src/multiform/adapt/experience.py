@@ -31,10 +31,10 @@ from typing import Any
 from ..demos.episode import Episode, SegmentLabel
 from ..io import append_jsonl, read_jsonl
 from ..learn.judge import TrialGrade
+from ..learn.labels import ROBOT
 from ..petri.net import APN
 from ..runtime.trace import Trace
 
-ROBOT_LABELLER = "robot"
 DEFAULT_MARGIN = 0.3
 
 
@@ -106,9 +106,6 @@ class Experience:
     def segments(self) -> list[OwnSegment]:
         return [OwnSegment.from_json(d) for d in read_jsonl(self.index)] if self.index.exists() else []
 
-    def sources(self) -> set[str]:
-        return {s.source for s in self.segments()}
-
     def add(self, trace: Trace, segments: Sequence[OwnSegment], source: str) -> None:
         """Keep ``trace`` and its ``segments`` (the trace first, so an index line always has its trace;
         a trial added again after a resume replaces nothing and adds no duplicate)."""
@@ -139,6 +136,6 @@ class Experience:
         out = []
         for source in sorted(by_source):
             ep = self.episode(source)
-            out.append(replace(ep, labels=[SegmentLabel(s.start, s.end, s.place, True, ROBOT_LABELLER)
+            out.append(replace(ep, labels=[SegmentLabel(s.start, s.end, s.place, True, ROBOT)
                                            for s in by_source[source]]))
         return out

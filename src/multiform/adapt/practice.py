@@ -42,7 +42,7 @@ from ..petri.revision import Revision, refit_law, revert
 from ..runtime.executor import Executor
 from ..runtime.trace import Trace
 from .diagnosis import diagnose
-from .experience import Experience, select_segments
+from .experience import DEFAULT_MARGIN, Experience, select_segments
 from .explore import ExploringLaw, law_noise
 from .repair import repair
 
@@ -68,7 +68,7 @@ class PracticeConfig:
     seed: int = 0
     use_judges: bool = True
     learn: bool = False
-    margin: float = 0.3
+    margin: float = DEFAULT_MARGIN
     explore: float = 0.0
     explore_every: int = 2
     explore_tau: float = 0.1
