@@ -1,6 +1,9 @@
 """The ``multiform`` command: one entry point, one sub-command per job.
 
-Exit status: 0 success, 2 bad input (the message names file, element and problem), 1 other errors.
+Exit status: 0 success; 2 bad input: a bad argument, file or model directory, a file that cannot be
+written, a folder another command is writing (one line ``multiform: error: <culprit>: <what is
+wrong>``, no traceback, nothing written); 1 anything else (an internal error: one line, and the
+traceback with ``--debug``).
 """
 
 from __future__ import annotations
@@ -23,12 +26,49 @@ from .errors import InvalidInput  # noqa: E402
 
 EXIT_BAD_INPUT = 2
 EXIT_BROKEN_PIPE = 141         # as a shell reports a process ended by SIGPIPE
+MAX_SEED = 2**31 - 1
 
 
 def _print_problems(exc: InvalidInput) -> None:
-    print(f"error: {len(exc.problems)} problem(s) found", file=sys.stderr)
-    for p in exc.problems:
+    """The first problem on the error line; a file with several problems lists the rest below."""
+    first, *rest = exc.problems or [str(exc)]
+    more = f" (and {len(rest)} more problem(s), below)" if rest else ""
+    print(f"multiform: error: {first}{more}", file=sys.stderr)
+    for p in rest:
         print(f"  {p}", file=sys.stderr)
+
+
+def _count(low: int, high: int):
+    """An argparse type: a whole number in ``low..high`` (numbers that size work or memory are bounded)."""
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+        if not low <= v <= high:
+            raise argparse.ArgumentTypeError(f"must be in {low}..{high}, got {v}")
+        return v
+    return parse
+
+
+def _positive(text: str) -> float:
+    """An argparse type: a finite number above 0."""
+    import math
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number above 0, got {text}")
+    return v
+
+
+def _default_output(name: str, suffix: str) -> Path:
+    """A default output file in the current folder, named for ``name`` (a net's name, which comes
+    from a file and may hold a path): only its base name, in safe characters."""
+    import re
+    base = re.sub(r"[^A-Za-z0-9_.-]", "_", Path(name).name).lstrip(".") or "net"
+    return Path(base[:100] + suffix)
 
 
 # -- net commands ----------------------------------------------------------------------------------
@@ -62,7 +102,7 @@ def cmd_draw(args: argparse.Namespace) -> int:
     changed: set[str] = set()
     if args.version:
         changed = changed_elements(_net_version(args, args.version - 1), apn)
-    out = Path(args.out or f"{apn.name}.svg")
+    out = Path(args.out) if args.out else _default_output(apn.name, ".svg")
     draw(apn, out, changed=changed, title=f"{apn.name}" + (f" (version {args.version})" if args.version else ""))
     print(f"wrote {out}")
     return 0
@@ -89,7 +129,7 @@ def cmd_net_history(args: argparse.Namespace) -> int:
 def cmd_net_export(args: argparse.Namespace) -> int:
     from .petri.pnml import write_pnml
     apn = _net_version(args, args.version)
-    out = Path(args.out or f"{apn.name}.pnml")
+    out = Path(args.out) if args.out else _default_output(apn.name, ".pnml")
     write_pnml(apn, out)
     print(f"wrote {out}")
     return 0
@@ -100,7 +140,7 @@ def cmd_net_import(args: argparse.Namespace) -> int:
     from .petri.pnml import read_pnml
     from .petri.skillfile import dump_skill
     apn = read_pnml(args.pnml)
-    out = Path(args.out or f"{apn.name}.yaml")
+    out = Path(args.out) if args.out else _default_output(apn.name, ".yaml")
     write_text(out, dump_skill(apn))
     print(f"wrote {out}")
     return 0
@@ -116,15 +156,23 @@ def _bar(total: int, desc: str):
 def cmd_record(args: argparse.Namespace) -> int:
     from .demos.dataset import write_dataset
     from .demos.record import record_many
+    from .lock import check_writable, exclusive
     from .tasks import get_task
     task = get_task(args.task)
+    out = Path(args.out)
+    if out.exists() and not args.overwrite:
+        raise InvalidInput("exists; add --overwrite to replace it, or choose another file", file=str(out))
+    if out.is_dir():
+        raise InvalidInput("is a folder; give a file name (.h5)", file=str(out))
+    check_writable(out)               # before recording, not after
     seeds = [args.seed * 100_000 + i for i in range(args.demos)]
-    with _bar(len(seeds), f"recording {args.task} demos") as bar:
-        eps = record_many(args.task, seeds, task.DEMO_ENV_KWARGS, workers=args.workers,
-                          progress=lambda i, n: bar.update(1))
-    write_dataset(args.out, eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)
+    with exclusive(out):
+        with _bar(len(seeds), f"recording {args.task} demos") as bar:
+            eps = record_many(args.task, seeds, task.DEMO_ENV_KWARGS, workers=args.workers,
+                              progress=lambda i, n: bar.update(1))
+        write_dataset(out, eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)
     ok = sum(e.outcome == "success" for e in eps)
-    print(f"wrote {args.out}: {len(eps)} demos, the mentor succeeded in {ok} ({100 * ok / len(eps):.0f} %)")
+    print(f"wrote {out}: {len(eps)} demos, the mentor succeeded in {ok} ({100 * ok / len(eps):.0f} %)")
     return 0
 
 
@@ -163,6 +211,9 @@ def cmd_teleop(args: argparse.Namespace) -> int:
     if out.exists() and not args.append:
         raise InvalidInput("exists; add --append to add the new demonstration to it, or choose another file",
                            file=str(out))
+    if _TELEOP_SCRIPT is None and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise InvalidInput("needs a display (no DISPLAY or WAYLAND_DISPLAY is set); run it on a desktop session",
+                           element="teleop")
     episodes, skill, env_kwargs, mentor = [], task.SKILL, dict(task.DEMO_ENV_KWARGS), args.labeller
     if out.exists():
         ds = read_dataset(out)
@@ -195,7 +246,9 @@ def cmd_teleop(args: argparse.Namespace) -> int:
     except TeleopAborted as exc:
         print(f"teleop: {exc}; nothing written", file=sys.stderr)
         return 1
-    write_dataset(out, episodes + [ep], skill, task.ENV_ID, env_kwargs, mentor=mentor)
+    from .lock import exclusive
+    with exclusive(out):
+        write_dataset(out, episodes + [ep], skill, task.ENV_ID, env_kwargs, mentor=mentor)
     labels = " ".join(f"{lab.transition}:{'s' if lab.success else 'f'}" for lab in ep.labels) or "none"
     print(f"wrote {out}: demo_{len(episodes)} ({ep.duration:.1f} s, seed {seed}, {len(ep.segments())} segment(s), "
           f"labels {labels}, outcome {ep.outcome or 'unlabelled'}); the file holds {len(episodes) + 1} demo(s)")
@@ -204,8 +257,12 @@ def cmd_teleop(args: argparse.Namespace) -> int:
 
 def cmd_label(args: argparse.Namespace) -> int:
     from .demos.labelling import label_session
-    res = label_session(args.model, args.source, labeller=args.labeller, script=args.script, show=not args.no_show,
-                        plots=args.plots, refit=args.refit, places=args.place, seed=args.seed)
+    from .lock import exclusive
+    from .model import SkillModel
+    SkillModel(args.model).verify(to_run=False)
+    with exclusive(args.model):
+        res = label_session(args.model, args.source, labeller=args.labeller, script=args.script, show=not args.no_show,
+                            plots=args.plots, refit=args.refit, places=args.place, seed=args.seed)
     ok = sum(r.success for r in res.records)
     print(f"labelled {len(res.records)} of {res.segments} segment(s) ({ok} success, {len(res.records) - ok} failure), "
           f"skipped {res.skipped}" + (f", {res.unlabelled} left" if res.unlabelled else "")
@@ -223,21 +280,23 @@ def cmd_label(args: argparse.Namespace) -> int:
 def cmd_train(args: argparse.Namespace) -> int:
     from .demos.dataset import read_dataset
     from .job import train_model
-    from .model import SkillModel
+    from .model import SkillModel, staged_model_dir
+    from .petri.skillfile import load_skill
     from .tasks import TASKS, get_task
+    load_skill(args.skill)
     ds = read_dataset(args.demos)
-    model = SkillModel.create(args.out, args.skill, args.demos, ds.env_name, ds.env_kwargs)
-    inverse = None
-    if args.inverse_model:
+    inverse, env_kwargs = None, ds.env_kwargs
+    if args.inverse_model:            # decided before anything is written
         task = next((get_task(t) for t in TASKS if get_task(t).ENV_ID == ds.env_name), None)
-        if task is None or not hasattr(task, "train_inverse_model"):
-            print(f"no inverse-model trainer for {ds.env_name}", file=sys.stderr)
-            return 1
-        inverse = task.train_inverse_model
-        model.update_manifest(env_kwargs=task.robot_env_kwargs(True))
-    print(f"training {model.apn.name} from {len(ds)} demos into {model.path}")
-    train_model(model, seed=args.seed, inverse_trainer=inverse, beside=True)
-    print(f"model ready: {model.path}")
+        if task is None or getattr(task, "train_inverse_model", None) is None:
+            raise InvalidInput(f"no inverse-model trainer for {ds.env_name}; train without --inverse-model",
+                               element="--inverse-model")
+        inverse, env_kwargs = task.train_inverse_model, task.robot_env_kwargs(True)
+    with staged_model_dir(args.out) as partial:
+        model = SkillModel.create(partial, args.skill, args.demos, ds.env_name, env_kwargs)
+        print(f"training {model.apn.name} from {len(ds)} demos into {args.out}")
+        train_model(model, seed=args.seed, inverse_trainer=inverse, beside=True)
+    print(f"model ready: {args.out}")
     return 0
 
 
@@ -245,7 +304,7 @@ def cmd_practice(args: argparse.Namespace) -> int:
     from .adapt.practice import Practice, PracticeConfig
     from .model import SkillModel
     from .tasks import get_task
-    model = SkillModel(args.model)
+    model = SkillModel(args.model, env_modules=args.env_module)
     task = get_task(args.task)
     scen = {s["name"]: s for s in task.scenarios()}
     if args.scenario not in scen:
@@ -271,7 +330,7 @@ def cmd_practice(args: argparse.Namespace) -> int:
 
     state = practice.run(progress=show, stop_after=args.stop_after)
     print(f"{len(state.trials)} trials; {state.stop_reason or 'stopped'}")
-    return 0
+    return 1 if state.stop_reason.startswith("fault") else 0
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -288,15 +347,26 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
+    from .io import read_json
+    from .lock import exclusive
     from .report.page import build_report
-    print(f"wrote {build_report(args.run)}")
+    path = Path(args.run) / "metrics.json"
+    metrics = read_json(path, "run metrics (is this a run folder?)")
+    if not isinstance(metrics, dict):
+        raise InvalidInput("must be a JSON object", file=str(path))
+    with exclusive(args.run):
+        try:
+            out = build_report(args.run, metrics)
+        except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+            raise InvalidInput(f"malformed ({type(exc).__name__}: {exc})", file=str(path)) from None
+    print(f"wrote {out}")
     return 0
 
 
 # -- the parser ------------------------------------------------------------------------------------
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="multiform",
         description="Teach a robot a dynamic skill by definition (a Petri net), demonstration "
                     "(GP control laws) and evaluation (SVM judges); the robot practises and repairs "
@@ -304,29 +374,30 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Start with `multiform demo pendulum --out runs/pendulum`. SKILL is a skill file "
                "or the name of a bundled skill (pendulum, pendulum_strict, nunchaku).")
     parser.add_argument("--version", action="version", version=f"multiform {_version()}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    parser.add_argument("--debug", action="store_true", help="show the traceback of an internal error")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True, parser_class=_Parser)
 
     p = sub.add_parser("check", help="validate a skill file and analyse its net (exit 0 ok, 2 problems)")
     p.add_argument("skill", help="skill file or bundled skill name")
-    p.add_argument("--max-states", type=int, default=10_000, help="cap on the reachability graph")
+    p.add_argument("--max-states", type=_count(1, 10_000_000), default=10_000, help="cap on the reachability graph")
     p.set_defaults(func=cmd_check)
 
     p = sub.add_parser("draw", help="draw a skill's net (SVG/PNG by suffix)")
     p.add_argument("skill")
     p.add_argument("--out", "-o", help="output file (default <skill>.svg)")
     p.add_argument("--history", help="revision history (default <skill>.history.jsonl beside the skill)")
-    p.add_argument("--version", "-v", type=int, dest="version", default=None,
+    p.add_argument("--version", "-v", type=_count(-1_000_000, 1_000_000), dest="version", default=None,
                    help="net version to draw (0 = original); changes of that version are highlighted")
     p.set_defaults(func=cmd_draw)
 
     net = sub.add_parser("net", help="net versions: diff, history, PNML export/import")
-    nsub = net.add_subparsers(dest="net_command", metavar="NET_COMMAND", required=True)
+    nsub = net.add_subparsers(dest="net_command", metavar="NET_COMMAND", required=True, parser_class=_Parser)
     p = nsub.add_parser("diff", help="show two versions of a net side by side")
     p.add_argument("skill")
-    p.add_argument("a", type=int, help="first version (0 = original)")
-    p.add_argument("b", type=int, help="second version (-1 = latest)")
+    p.add_argument("a", type=_count(-1_000_000, 1_000_000), help="first version (0 = original)")
+    p.add_argument("b", type=_count(-1_000_000, 1_000_000), help="second version (-1 = latest)")
     p.add_argument("--history", help="revision history file")
-    p.add_argument("--width", type=int, default=100)
+    p.add_argument("--width", type=_count(40, 1000), default=100)
     p.set_defaults(func=cmd_net_diff)
     p = nsub.add_parser("history", help="list the recorded revisions")
     p.add_argument("skill")
@@ -336,7 +407,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("skill")
     p.add_argument("--out", "-o")
     p.add_argument("--history")
-    p.add_argument("--version", "-v", type=int, dest="version", default=None)
+    p.add_argument("--version", "-v", type=_count(-1_000_000, 1_000_000), dest="version", default=None)
     p.set_defaults(func=cmd_net_export)
     p = nsub.add_parser("import", help="import a PNML net as a skill file")
     p.add_argument("pnml")
@@ -345,14 +416,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("record", help="record scripted-mentor demonstrations of a task (HDF5)")
     p.add_argument("task", choices=["pendulum", "nunchaku"])
-    p.add_argument("--demos", type=int, default=40, help="number of demonstrations")
+    p.add_argument("--demos", type=_count(1, 1000), default=40, help="number of demonstrations")
     p.add_argument("--out", "-o", required=True, help="output .h5 file")
-    p.add_argument("--workers", type=int, default=2, help="processes")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
+    p.add_argument("--workers", type=_count(1, 256), default=2, help="processes")
+    p.add_argument("--seed", type=_count(0, 40_000), default=0, help="demo i starts from seed 100000 * SEED + i")
     p.set_defaults(func=cmd_record)
 
     demos = sub.add_parser("demos", help="inspect demonstration files")
-    dsub = demos.add_subparsers(dest="demos_command", metavar="DEMOS_COMMAND", required=True)
+    dsub = demos.add_subparsers(dest="demos_command", metavar="DEMOS_COMMAND", required=True, parser_class=_Parser)
     p = dsub.add_parser("info", help="count, durations, success fraction, samples per transition")
     p.add_argument("demos")
     p.add_argument("--json", action="store_true")
@@ -371,7 +443,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--joystick", action="store_true", help="require a joystick (axis 0 drives, buttons mark)")
     p.add_argument("--time-scale", type=float, default=1.0, help="world speed; below 1 slows it down for a beginner")
     p.add_argument("--max-duration", type=float, default=60.0, help="seconds of simulated time at most")
-    p.add_argument("--seed", type=int, default=None, help="start state (default: the number of demos in the file)")
+    p.add_argument("--seed", type=_count(0, MAX_SEED), default=None,
+                   help="start state (default: the number of demos in the file)")
     p.add_argument("--labeller", default="human", help="your name, stored with your labels")
     p.set_defaults(func=cmd_teleop)
 
@@ -388,7 +461,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plots", default=None, help="save every segment's plot (PNG) in this folder")
     p.add_argument("--place", action="append", default=None, help="only this judged place (repeatable)")
     p.add_argument("--refit", action="store_true", help="then revise the judges of the places that got new labels")
-    p.add_argument("--seed", type=int, default=0, help="random state of a newly fitted judge")
+    p.add_argument("--seed", type=_count(0, MAX_SEED), default=0, help="random state of a newly fitted judge")
     p.set_defaults(func=cmd_label)
 
     p = sub.add_parser("train", help="fit laws, judges and regions of a skill from demonstrations")
@@ -396,7 +469,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("demos", help="demonstration file (.h5)")
     p.add_argument("--out", "-o", required=True, help="model directory")
     p.add_argument("--inverse-model", action="store_true", help="also learn the auxiliary inverse model")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=_count(0, MAX_SEED), default=0)
     p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("practice", help="practise a trained skill; repair the net on constant failure")
@@ -404,25 +477,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--task", default="pendulum", choices=["pendulum", "nunchaku"])
     p.add_argument("--scenario", default="a_strict", help="the task's practice scenario")
     p.add_argument("--out", help="practice folder (default MODEL/practice/SCENARIO)")
-    p.add_argument("--max-trials", type=int, default=30)
-    p.add_argument("--stop-after", type=int, default=None, help="stop after this many trials (resume later)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--max-trials", type=_count(1, 100_000), default=30)
+    p.add_argument("--stop-after", type=_count(1, 100_000), default=None,
+                   help="stop after this many trials (resume later)")
+    p.add_argument("--seed", type=_count(0, MAX_SEED - 1_000_000), default=0)
+    p.add_argument("--env-module", action="append", default=[], metavar="MODULE",
+                   help="allow the model's env id to import MODULE (Gymnasium's module:Env-v0 form); a model "
+                        "directory never imports code on its own")
     p.set_defaults(func=cmd_practice)
 
     p = sub.add_parser("demo", help="the main job: record, train, practise with repair, evaluate, report")
     p.add_argument("task", choices=["pendulum", "nunchaku"])
     p.add_argument("--out", "-o", required=True, help="run folder")
-    p.add_argument("--demos", type=int, default=None, help="demonstrations (default: the task's DEMOS, 40)")
-    p.add_argument("--eval-trials", type=int, default=200)
-    p.add_argument("--ablation-trials", type=int, default=100)
-    p.add_argument("--max-trials", type=int, default=30, help="practice trials per scenario at most")
-    p.add_argument("--workers", type=int, default=2)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--demos", type=_count(1, 1000), default=None,
+                   help="demonstrations (default: the task's DEMOS, 40)")
+    p.add_argument("--eval-trials", type=_count(1, 1_000_000), default=200)
+    p.add_argument("--ablation-trials", type=_count(0, 1_000_000), default=100)
+    p.add_argument("--max-trials", type=_count(1, 100_000), default=30, help="practice trials per scenario at most")
+    p.add_argument("--workers", type=_count(1, 256), default=2)
+    p.add_argument("--seed", type=_count(0, 40_000), default=0)
     p.add_argument("--no-video", action="store_true")
     p.add_argument("--learn-from-practice", action="store_true",
                    help="after the repair scenarios, keep practising as evaluated and learn from it: refit the laws "
                         "from the robot's own graded successes, revise the judges with the mentor's grades of some trials")
-    p.add_argument("--practice-budget", type=int, default=100, help="practice trials of all scenarios together at most")
+    p.add_argument("--practice-budget", type=_count(0, 100_000), default=100,
+                   help="practice trials of all scenarios together at most")
     p.add_argument("--reference-controller", action="store_true",
                    help="drive the arm with the env's model-based controller instead of the learned inverse model")
     p.set_defaults(func=cmd_demo)
@@ -436,6 +515,13 @@ def build_parser() -> argparse.ArgumentParser:
 def _version() -> str:
     from . import __version__
     return __version__
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line error (the argument and what is wrong), exit status 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -454,6 +540,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:              # `multiform ... | head`: the reader left, nothing is wrong
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_BROKEN_PIPE
+    except OSError as exc:               # a file that cannot be read or written: the file and why
+        if args.debug:
+            raise
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"multiform: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except RecursionError:
+        if args.debug:
+            raise
+        print("multiform: error: the input is nested too deeply to read", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except Exception as exc:             # a bug of ours: one line, the traceback on request
+        if args.debug:
+            raise
+        print(f"multiform: internal error: {type(exc).__name__}: {exc} (run again with --debug for the traceback)",
+              file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -35,7 +35,8 @@ from .errors import InvalidInput
 from .io import write_json
 from .learn.labels import LabelStore
 from .learn.training import fit_judge, fit_law, fit_regions, judged_places, mentor_records
-from .model import SkillModel
+from .lock import exclusive
+from .model import SkillModel, staged_model_dir
 from .petri.net import APN
 from .stats import rate
 from .tasks import get_task
@@ -117,11 +118,16 @@ class Job:
 
     # -- 2. training ------------------------------------------------------------------------------
     def train(self, demos: Path) -> SkillModel:
-        model = SkillModel.create(self.out / "model", self.task.SKILL, demos, self.task.ENV_ID,
-                                  self.task.robot_env_kwargs(self.cfg.inverse_model))
-        inverse = self.task.train_inverse_model if self.cfg.inverse_model else None
-        train_model(model, seed=self.cfg.seed, log=self.log, inverse_trainer=inverse, beside=self.cfg.workers > 1)
-        return model
+        final = self.out / "model"
+        if final.exists():                # trained by an earlier run of this job
+            return SkillModel(final)
+        # built beside and moved into place when complete; a killed job resumes the partial one
+        with staged_model_dir(final, keep_on_error=True) as partial:
+            model = SkillModel.create(partial, self.task.SKILL, demos, self.task.ENV_ID,
+                                      self.task.robot_env_kwargs(self.cfg.inverse_model))
+            inverse = self.task.train_inverse_model if self.cfg.inverse_model else None
+            train_model(model, seed=self.cfg.seed, log=self.log, inverse_trainer=inverse, beside=self.cfg.workers > 1)
+        return SkillModel(final)
 
     # -- 3. practice ------------------------------------------------------------------------------
     def practise(self, model: SkillModel) -> dict[str, Any]:
@@ -191,8 +197,16 @@ class Job:
 
     # -- the whole job ----------------------------------------------------------------------------
     def run(self) -> dict[str, Any]:
+        """The whole job, holding the run folder's lock (a second job on it is refused)."""
+        try:
+            self.out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InvalidInput(f"cannot create the run folder ({exc.strerror})", file=str(self.out)) from None
+        with exclusive(self.out):
+            return self._run()
+
+    def _run(self) -> dict[str, Any]:
         t0 = time.perf_counter()
-        self.out.mkdir(parents=True, exist_ok=True)
         demos = self._stage("record", self.record)
         model = self._stage("train", lambda: self.train(demos))
         with Evaluator(self.task.TASK, self.cfg.workers) as ev:

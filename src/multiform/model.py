@@ -16,15 +16,20 @@
       labels.jsonl           every label: the mentor's and later ones
 
 Everything is ``.npz`` + JSON, loaded with ``allow_pickle=False``; a shared model directory can
-never run code.
+never run code: its env must be registered (a ``module:`` id is refused unless the caller names
+the module). ``model.json`` lists every learned artifact with its kind and SHA-256, and
+:meth:`SkillModel.verify` checks them all (present, unchanged, loadable, finite) before any trial.
 """
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
+import hashlib
 import os
+import re
 import shutil
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -34,8 +39,9 @@ import numpy as np
 
 from .demos.dataset import read_dataset
 from .demos.episode import Episode
-from .errors import InvalidInput
+from .errors import InvalidInput, Problem
 from .io import read_json, write_json
+from .lock import exclusive
 from .learn.condition import load_condition
 from .learn.gp import GPLaw
 from .learn.judge import Judge, TrialGrade, grade_episode
@@ -48,17 +54,26 @@ from .petri.skillfile import load_skill, resolve_skill
 from .runtime.executor import Executor
 from .runtime.trace import Trace
 
-MANIFEST_VERSION = 1
+MANIFEST_VERSION = 2
+# where each kind of learned artifact lives in a model directory
+ARTIFACT_FOLDERS = {"laws": "law", "judges": "judge", "conditions": "condition"}
+ARTIFACT_FILES = {"regions.npz": "regions", "inverse_model.npz": "inverse_model"}
 
 
 class SkillModel:
-    """Opens (or creates with :meth:`create`) a model directory; pieces load lazily."""
+    """Opens (or creates with :meth:`create`) a model directory; pieces load lazily.
 
-    def __init__(self, path: str | os.PathLike):
+    ``env_modules`` names the modules a ``module:Env-v0`` env id in ``model.json`` may import
+    (none by default: a model directory never makes the library import code)."""
+
+    def __init__(self, path: str | os.PathLike, env_modules: Sequence[str] = ()):
         self.path = Path(path)
-        if not (self.path / "skill.yaml").exists():
+        if not (self.path / "skill.yaml").is_file():
             raise InvalidInput("not a skill model directory (no skill.yaml)", file=str(self.path))
         self.history = History(self.path / "skill.yaml", self.path / "skill.history.jsonl")
+        self.env_modules = tuple(env_modules)
+        self._verified: str | None = None        # the state last verified (see verify)
+        self._verified_to_run: str | None = None
 
     @classmethod
     def create(cls, path: str | os.PathLike, skill: str | os.PathLike, demos: str | os.PathLike | None = None,
@@ -77,7 +92,8 @@ class SkillModel:
         manifest = {"format_version": MANIFEST_VERSION, "skill": apn.name,
                     "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
                     "env": env_id or apn.env, "env_kwargs": dict(env_kwargs or {}),
-                    "demos": str(Path(demos).resolve()) if demos else None, "training": {}}
+                    "demos": str(Path(demos).resolve()) if demos else None, "training": {},
+                    "artifacts": {"skill.yaml": {"kind": "skill", "sha256": _sha256(dst)}}}
         old = path / "model.json"
         if old.exists():
             manifest = {**read_json(old), **{k: v for k, v in manifest.items() if v is not None and k != "created"}}
@@ -87,10 +103,21 @@ class SkillModel:
     # -- manifest ---------------------------------------------------------------------------------
     @property
     def manifest(self) -> dict[str, Any]:
+        where = str(self.path / "model.json")
         m = read_json(self.path / "model.json", "model manifest")
+        if not isinstance(m, dict):
+            raise InvalidInput("must be a JSON object", file=where)
         if m.get("format_version") != MANIFEST_VERSION:
-            raise InvalidInput(f"manifest version {m.get('format_version')!r}, expected {MANIFEST_VERSION}",
-                               file=str(self.path / "model.json"))
+            raise InvalidInput(f"manifest version {m.get('format_version')!r}, this multiform reads version "
+                               f"{MANIFEST_VERSION} (retrain the model)", file=where)
+        types = {"env": str, "env_kwargs": dict, "training": dict, "artifacts": dict}
+        problems = [Problem(where, k, f"must be {t.__name__ if t is not str else 'a string'}, got "
+                                      f"{type(m.get(k)).__name__}")
+                    for k, t in types.items() if not isinstance(m.get(k), t)]
+        if m.get("demos") is not None and not isinstance(m["demos"], str):
+            problems.append(Problem(where, "demos", f"must be a file name, got {type(m['demos']).__name__}"))
+        if problems:
+            raise InvalidInput(problems)
         return m
 
     def update_manifest(self, **items: Any) -> None:
@@ -100,7 +127,118 @@ class SkillModel:
             for k, v in new.items():
                 out[k] = merge(out[k], v) if isinstance(v, Mapping) and isinstance(out.get(k), dict) else v
             return out
-        write_json(self.path / "model.json", merge(self.manifest, items))
+        with exclusive(self.path / "model.json", wait=True):   # a trainer beside writes it too
+            write_json(self.path / "model.json", merge(self.manifest, items))
+
+    def _register(self, path: Path, kind: str) -> None:
+        """List a newly written artifact in ``model.json`` with its kind and SHA-256."""
+        rel = path.relative_to(self.path).as_posix()
+        self.update_manifest(artifacts={rel: {"kind": kind, "sha256": _sha256(path)}})
+
+    # -- integrity --------------------------------------------------------------------------------
+    def problems(self, to_run: bool = True) -> list[Problem]:
+        """Everything wrong with the directory: artifacts missing, changed, unlisted, unreadable or
+        not finite; a history that does not replay; and, for running the skill (``to_run``), the
+        net's laws and conditions without a fit, a torque-driven env without its inverse model, an
+        env id that is not allowed."""
+        try:
+            m = self.manifest
+            apn = self.apn
+        except InvalidInput as exc:
+            return list(exc.problems)
+        listed: dict[str, dict[str, Any]] = m["artifacts"]
+        out: list[Problem] = []
+        for rel, info in listed.items():
+            out += self._check_artifact(rel, info)
+        for folder in ARTIFACT_FOLDERS:
+            for p in sorted((self.path / folder).glob("*.npz")):
+                rel = p.relative_to(self.path).as_posix()
+                if rel not in listed:
+                    out.append(Problem(str(p), "", "not listed in model.json's artifacts (not written by multiform "
+                                                   "for this model)"))
+        for name in ARTIFACT_FILES:
+            if (self.path / name).exists() and name not in listed:
+                out.append(Problem(str(self.path / name), "", "not listed in model.json's artifacts"))
+        if not to_run:
+            return out
+        for name, spec in apn.laws.items():
+            if f"laws/{spec.fit_name}.npz" not in listed:
+                out.append(Problem(str(self.path / "laws" / f"{spec.fit_name}.npz"), f"laws.{name}",
+                                   "the net runs this fit, but the model has none (train first)"))
+        for t in apn.transitions:
+            if t.condition.is_learned and f"conditions/{t.condition.model}.npz" not in listed:
+                out.append(Problem(str(self.path / "conditions" / f"{t.condition.model}.npz"),
+                                   f"transitions.{t.id}.condition", "the learned condition is missing"))
+        if self.needs_inverse_model(m) and "inverse_model.npz" not in listed:
+            out.append(Problem(str(self.path / "inverse_model.npz"), "",
+                               f"missing: the env takes joint torques (env_kwargs {m['env_kwargs']}), and without "
+                               f"the inverse model nothing turns the skill's commands into torques"))
+        try:
+            self._env_id(m)
+        except InvalidInput as exc:
+            out += exc.problems
+        return out
+
+    def _check_artifact(self, rel: str, info: Any) -> list[Problem]:
+        where = str(self.path / "model.json")
+        if not isinstance(info, dict) or not isinstance(info.get("sha256"), str) or "kind" not in info:
+            return [Problem(where, f"artifacts.{rel}", "must be an object with kind and sha256")]
+        parts = Path(rel).parts
+        ok_place = (rel == "skill.yaml" or rel in ARTIFACT_FILES
+                    or (len(parts) == 2 and ARTIFACT_FOLDERS.get(parts[0]) == info["kind"] and rel.endswith(".npz")))
+        if not ok_place or ".." in parts or Path(rel).is_absolute():
+            return [Problem(where, f"artifacts.{rel}", "not a place for a model artifact")]
+        path = self.path / rel
+        if not path.is_file():
+            return [Problem(str(path), "", f"missing (model.json lists this {info['kind']})")]
+        if _sha256(path) != info["sha256"]:
+            return [Problem(str(path), "", "changed since multiform wrote it (SHA-256 differs from model.json)")]
+        if rel == "skill.yaml":
+            return []
+        try:
+            _load_artifact(path, info["kind"])
+        except InvalidInput as exc:
+            return list(exc.problems)
+        bad = _non_finite_arrays(path)
+        return [Problem(str(path), f"array {a!r}", "has non-finite values") for a in bad]
+
+    def verify(self, to_run: bool = True) -> None:
+        """Raise :class:`InvalidInput` listing every problem (see :meth:`problems`); a model that
+        passed is not checked again until ``model.json`` or its history changes."""
+        h = hashlib.sha256()
+        for f in (self.path / "model.json", self.history.path):
+            h.update(f.read_bytes() if f.is_file() else b"-")
+        h.update(b"run" if to_run else b"")
+        key = h.hexdigest()
+        if key in (self._verified, self._verified_to_run):
+            return
+        problems = self.problems(to_run)
+        if problems:
+            raise InvalidInput(problems)
+        if to_run:
+            self._verified_to_run = key
+        else:
+            self._verified = key
+
+    @staticmethod
+    def needs_inverse_model(manifest: Mapping[str, Any]) -> bool:
+        """Whether the env takes joint torques, so the skill's commands need the inverse model."""
+        return manifest.get("env_kwargs", {}).get("action_mode") == "torque"
+
+    def _env_id(self, m: Mapping[str, Any]) -> str:
+        import multiform.envs  # noqa: F401  (registers the envs)
+        env_id = m["env"]
+        where = str(self.path / "model.json")
+        if ":" in env_id:
+            module = env_id.split(":", 1)[0]
+            if module not in self.env_modules:
+                raise InvalidInput(f"{env_id!r} would import the module {module!r}; a model directory never runs "
+                                   f"code (name the module yourself to allow it: --env-module {module})",
+                                   file=where, element="env")
+            return env_id
+        if env_id not in gym.registry:
+            raise InvalidInput(f"{env_id!r} is not a registered Gymnasium env", file=where, element="env")
+        return env_id
 
     # -- the net ----------------------------------------------------------------------------------
     @property
@@ -122,7 +260,14 @@ class SkillModel:
 
     # -- learned pieces ---------------------------------------------------------------------------
     def save_law(self, name: str, law: GPLaw) -> None:
-        law.save(self.path / "laws" / f"{name}.npz")
+        self._save(law, f"laws/{name}.npz", "law")
+
+    def _save(self, artifact: Any, rel: str, kind: str) -> None:
+        if not IDENT_FILE.fullmatch(Path(rel).stem):
+            raise InvalidInput(f"{Path(rel).stem!r} is not a valid artifact name", file=str(self.path))
+        path = self.path / rel
+        artifact.save(path)
+        self._register(path, kind)
 
     def laws(self, apn: APN | None = None) -> dict[str, GPLaw]:
         """The fitted laws ``apn`` (default: the latest net) runs, by law name: each law's current
@@ -136,7 +281,7 @@ class SkillModel:
         return out
 
     def save_judge(self, place: str, judge: Judge) -> None:
-        judge.save(self.path / "judges" / f"{place}.npz")
+        self._save(judge, f"judges/{place}.npz", "judge")
 
     def judges(self) -> dict[str, Judge]:
         apn = self.apn
@@ -147,7 +292,7 @@ class SkillModel:
         return out
 
     def save_condition(self, name: str, model: Any) -> None:
-        model.save(self.path / "conditions" / f"{name}.npz")
+        self._save(model, f"conditions/{name}.npz", "condition")
 
     def conditions(self) -> dict[str, Any]:
         conds = {p.stem: load_condition(p) for p in sorted((self.path / "conditions").glob("*.npz"))}
@@ -155,7 +300,7 @@ class SkillModel:
         return conds
 
     def save_regions(self, regions: PlaceRegions) -> None:
-        regions.save(self.path / "regions.npz")
+        self._save(regions, "regions.npz", "regions")
 
     def regions(self) -> PlaceRegions | None:
         p = self.path / "regions.npz"
@@ -164,6 +309,9 @@ class SkillModel:
     @property
     def labels(self) -> LabelStore:
         return LabelStore(self.path / "labels.jsonl")
+
+    def save_inverse_model(self, inverse: Any) -> None:
+        self._save(inverse, "inverse_model.npz", "inverse_model")
 
     def inverse_model(self):
         """The learned inverse model, or None if the model has none (the env then takes commands)."""
@@ -176,16 +324,25 @@ class SkillModel:
     # -- running ----------------------------------------------------------------------------------
     def make_env(self, **overrides: Any) -> gym.Env:
         """The env the skill runs on (the manifest's id and arguments; ``overrides`` win)."""
-        import multiform.envs  # noqa: F401  (registers the envs)
         m = self.manifest
+        env_id = self._env_id(m)
         # Gymnasium's passive checker wraps every step (≈ 10 µs at 1 kHz); our envs pass its full
         # check_env in their tests, so the skill's runs go without it.
-        return gym.make(m["env"], disable_env_checker=True, **{**m.get("env_kwargs", {}), **overrides})
+        try:
+            return gym.make(env_id, disable_env_checker=True, **{**m["env_kwargs"], **overrides})
+        except (TypeError, ValueError) as exc:
+            raise InvalidInput(f"cannot make {env_id} with these arguments: {exc}", file=str(self.path / "model.json"),
+                               element="env_kwargs") from None
 
     def executor(self, env: gym.Env, apn: APN | None = None, use_inverse_model: bool = True) -> Executor:
         """An executor for ``apn`` (default: the latest net) with this model's laws and conditions."""
+        self.verify()
         apn = apn or self.apn
         inverse = self.inverse_model() if use_inverse_model else None
+        if inverse is None and self.needs_inverse_model(self.manifest) and \
+                tuple(env.action_space.shape) != (len(env.unwrapped.command_names),):
+            raise InvalidInput("the env takes joint torques; a run without the inverse model needs the env in "
+                               "command mode", file=str(self.path / "model.json"), element="env_kwargs")
         return Executor(apn, env, self.laws(apn), self.conditions(), inverse, net_version=self.version)
 
     def grade(self, trace: Trace, source: str, judges: Mapping[str, Judge] | None = None,
@@ -199,6 +356,63 @@ class SkillModel:
             return TrialGrade(score=0.0)
         return grade_episode(place_episode(apn, trace.to_episode()), judges, lambda p: p, source=source,
                              labels=self.labels.effective(sources=[source]))
+
+
+@contextlib.contextmanager
+def staged_model_dir(final: str | os.PathLike, keep_on_error: bool = False) -> Iterator[Path]:
+    """Build a model directory in a hidden sibling (``.NAME.partial``, locked) and move it to
+    ``final`` only when the block ends without error, so a failed or killed training never leaves
+    a half-made model where a model is expected. ``keep_on_error`` keeps the partial folder for a
+    resumed run to continue (the main job); otherwise it is removed."""
+    final = Path(final)
+    if final.exists():
+        raise InvalidInput("exists already; train into a new directory", file=str(final))
+    partial = final.with_name(f".{final.name}.partial")
+    try:
+        partial.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InvalidInput(f"cannot create the model directory here ({exc.strerror})", file=str(final)) from None
+    done = False
+    try:
+        with exclusive(partial):
+            yield partial
+            os.rename(partial, final)
+            done = True
+    finally:
+        if not done and not keep_on_error:
+            shutil.rmtree(partial, ignore_errors=True)
+
+
+IDENT_FILE = re.compile(r"[A-Za-z_][A-Za-z0-9_\-]*")
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _load_artifact(path: Path, kind: str) -> Any:
+    """Load one artifact with its own reader (kind, version and shapes checked there)."""
+    if kind == "law":
+        return GPLaw.load(path)
+    if kind == "judge":
+        return Judge.load(path)
+    if kind == "condition":
+        return load_condition(path)
+    if kind == "regions":
+        return PlaceRegions.load(path)
+    if kind == "inverse_model":
+        from .learn.inverse import InverseDynamicsModel
+        return InverseDynamicsModel.load(path)
+    raise InvalidInput(f"unknown artifact kind {kind!r}", file=str(path))
+
+
+def _non_finite_arrays(path: Path) -> list[str]:
+    with np.load(path, allow_pickle=False) as npz:
+        return [k for k in npz.files if npz[k].dtype.kind in "fc" and not np.isfinite(npz[k]).all()]
 
 
 class ModelLearners:

@@ -68,9 +68,11 @@ def test_timeout_is_a_failure(env):
     assert tr.num_ticks == 2001
 
 
-def test_nan_law_ends_as_diverged_not_a_crash(env):
+def test_nan_law_ends_as_a_fault_naming_the_law_not_a_crash(env):
     tr = Executor(parse_skill(yaml.safe_dump(NET)), env, {"go": Const(float("nan")), "back": Spring()}).run(seed=1)
-    assert tr.outcome == "diverged" and not tr.success
+    assert tr.outcome == "fault" and not tr.success
+    assert tr.fault.startswith("law go output")
+    assert np.isfinite(tr.commands).all() and np.isfinite(tr.raw_commands).all()
 
 
 def test_collector_paused_during_a_trial_and_restored_even_on_error(env):

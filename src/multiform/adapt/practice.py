@@ -32,7 +32,9 @@ from pathlib import Path
 from typing import Any
 
 from ..demos.episode import Episode, SegmentLabel
+from ..errors import InvalidInput
 from ..io import read_json, write_json
+from ..lock import exclusive
 from ..learn.labels import is_mentor, records_from_episode
 from ..learn.training import fit_law
 from ..learn.views import place_episode
@@ -80,6 +82,20 @@ class PracticeConfig:
     target_window: int = 20
     revert_window: int = 10
     revert_p: float = 0.1
+
+    def __post_init__(self) -> None:
+        counts = {"failures_in_a_row": 1, "window": 0, "success_streak": 1, "max_trials": 1, "seed": 0,
+                  "explore_every": 0, "refit_every": 1, "refit_min_segments": 1, "mentor_every": 0,
+                  "mentor_budget": 0, "target_window": 1, "revert_window": 1}
+        for name, low in counts.items():
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= 1_000_000:
+                raise InvalidInput(f"must be a whole number in {low}..1000000, got {v!r}", element=name)
+        for name in ("failure_rate", "margin", "target_rate", "revert_p", "explore", "explore_tau"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and 0.0 <= v <= (10.0 if name.startswith("explore")
+                                                                                       else 1.0)):
+                raise InvalidInput(f"out of range: {v!r}", element=name)
 
     def explores(self, k: int) -> bool:
         return self.explore > 0 and self.explore_every > 0 and k % self.explore_every == self.explore_every - 1
@@ -181,7 +197,15 @@ class Practice:
     # -- the loop ----------------------------------------------------------------------------------
     def run(self, progress: Callable[[PracticeState, dict[str, Any]], None] | None = None,
             stop_after: int | None = None) -> PracticeState:
-        """Practise until done (or ``stop_after`` more trials); returns the final state."""
+        """Practise until done (or ``stop_after`` more trials); returns the final state.
+
+        Holds the model directory's lock throughout, and checks the model before the first trial."""
+        with exclusive(self.model.path):
+            self.model.verify()
+            return self._run(progress, stop_after)
+
+    def _run(self, progress: Callable[[PracticeState, dict[str, Any]], None] | None,
+             stop_after: int | None) -> PracticeState:
         cfg = self.config
         self.folder.mkdir(parents=True, exist_ok=True)
         state = self.load_state()
@@ -210,6 +234,12 @@ class Practice:
                 runner = explorer
             trace = runner.run(seed=cfg.trial_seed(k), options=self.options(k),
                                perturb=self.perturb(k) if self.perturb else None)
+            if trace.outcome == "fault":
+                # a non-finite value is the model's or the simulator's fault, not the skill's: nothing
+                # is learned or repaired from it, and practice stops until someone looks
+                trace.save(self.folder / "faults" / f"trial_{k:04d}.npz")
+                state.stop_reason = f"fault in trial {k}: {trace.fault}; nothing was learned from it"
+                break
             grade = self.model.grade(trace, self.source(k), judges, apn=executor.apn) if judges else None
             success = trace.success and (grade is None or grade.success)
             summary = {"trial": k, "seed": cfg.trial_seed(k), "net_version": version, "outcome": trace.outcome,

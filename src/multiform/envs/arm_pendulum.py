@@ -87,9 +87,17 @@ def model_path() -> str:
     return str(resources.files("multiform") / "envs" / "assets" / "arm_pendulum.xml")
 
 
+# the largest pendulum the arm's simulation is meant for (the nominal one is 0.4 m, 0.1 kg, 2e-4 N m s/rad)
+MAX_PARAMS = {"length": 2.0, "mass": 10.0, "damping": 10.0}
+
+
 def load_model() -> mujoco.MjModel:
-    """A fresh copy of the arm-pendulum model."""
-    return mujoco.MjModel.from_xml_path(model_path())
+    """A fresh copy of the arm-pendulum model. MuJoCo's automatic reset on bad values is off: a
+    non-finite state stays visible (and ends the step as ``non_finite``) instead of silently
+    teleporting the arm home."""
+    m = mujoco.MjModel.from_xml_path(model_path())
+    m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+    return m
 
 
 def pendulum_inertia(length: float, mass: float) -> tuple[float, float, float]:
@@ -189,12 +197,17 @@ class ArmPendulumEnv(gym.Env):
             else:
                 p[k] = NOMINAL[k] * (float(rng.uniform(0.8, 1.2)) if randomize else 1.0)
         p["damping"] = float(options["damping"]) if options.get("damping") is not None else NOMINAL["damping"]
-        if not (p["length"] > 0.05 and p["mass"] > 0.0 and p["damping"] >= 0.0):
-            raise ValueError(f"pendulum parameters out of range: {p}")
+        if not (0.05 < p["length"] <= MAX_PARAMS["length"] and 0.0 < p["mass"] <= MAX_PARAMS["mass"]
+                and 0.0 <= p["damping"] <= MAX_PARAMS["damping"]):
+            raise ValueError(f"pendulum parameters out of range: {p}; allowed: length in (0.05, "
+                             f"{MAX_PARAMS['length']}] m, mass in (0, {MAX_PARAMS['mass']}] kg, damping in "
+                             f"[0, {MAX_PARAMS['damping']}] N m s/rad")
         theta0 = options.get("theta0")
         theta0 = float(theta0) if theta0 is not None else math.pi + float(rng.uniform(-0.1, 0.1))
         omega0 = options.get("omega0")
         omega0 = float(omega0) if omega0 is not None else float(rng.uniform(-0.1, 0.1))
+        if not (math.isfinite(theta0) and math.isfinite(omega0) and abs(omega0) <= 1e3):
+            raise ValueError(f"theta0 and omega0 must be finite (|omega0| <= 1000 rad/s), got {theta0!r}, {omega0!r}")
         x0 = float(options.get("x0") or 0.0)
         if not (math.isfinite(x0) and abs(x0) <= self.x_limit):
             raise ValueError(f"x0 must be within ±{self.x_limit} m, got {options.get('x0')!r}")
@@ -286,14 +299,13 @@ class ArmPendulumEnv(gym.Env):
             self._disturb(t)
         mujoco.mj_step2(m, d)
         mujoco.mj_step1(m, d)
-        diverged = d.time < t + 0.5 * self.dt     # MuJoCo resets the state (time 0) on bad values
-        if not diverged:
-            obs = self._observe()
-            o = self._obs_list
-            diverged = not math.isfinite(sum(o)) or abs(o[1]) > 1e3
-        if diverged:
+        obs = self._observe()
+        o = self._obs_list
+        s = sum(o)
+        non_finite = bool(s - s)                  # NaN or ±inf somewhere
+        if non_finite or abs(o[1]) > 1e3:
             obs = np.zeros(len(OBSERVATION_NAMES))
-            return obs, 0.0, True, False, {"diverged": True, "out_of_workspace": False,
+            return obs, 0.0, True, False, {"diverged": True, "non_finite": non_finite, "out_of_workspace": False,
                                            "disturbance": self._applied}
         c = self.workspace_centre
         out = (abs(o[2]) > TERMINATE_X or abs(o[5] - c[1]) > TERMINATE_YZ or abs(o[6] - c[2]) > TERMINATE_YZ

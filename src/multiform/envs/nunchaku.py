@@ -144,6 +144,8 @@ class NunchakuEnv(gym.Env):
         self.width, self.height = int(width), int(height)
         self.shadows = bool(shadows)
         self.model = mujoco.MjModel.from_xml_path(model_path())
+        # no silent reset on bad values: a non-finite state ends the step as ``non_finite``
+        self.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
         self.data = mujoco.MjData(self.model)
         self.dt = float(self.model.opt.timestep)
         m = self.model
@@ -308,7 +310,8 @@ class NunchakuEnv(gym.Env):
                     or not (np.isfinite(d.qvel).all() and abs(d.qvel).max() < 1e4))
         if diverged:
             obs = np.zeros(len(OBSERVATION_NAMES))
-            info = {"diverged": True, "dropped": False, "scene": {}, "truth": {}}
+            info = {"diverged": True, "non_finite": not np.isfinite(d.qvel).all(), "dropped": False,
+                    "scene": {}, "truth": {}}
             return obs, 0.0, True, False, info
         qvel = d.qvel
         v = (qvel[self._vx], qvel[self._vz], qvel[self._vq])

@@ -49,6 +49,8 @@ class Revision:
 
     @classmethod
     def from_json(cls, d: Mapping[str, Any], where: str = "") -> Revision:
+        if not isinstance(d, Mapping):
+            raise InvalidInput(f"a revision record must be an object, got {type(d).__name__}", element=where)
         missing = [k for k in ("version", "operator", "target", "reason", "params") if k not in d]
         if missing:
             raise InvalidInput(f"revision record lacks {', '.join(missing)}", element=where)
@@ -232,7 +234,16 @@ class History:
             return []
         revs = []
         for i, rec in enumerate(read_jsonl(self.path), 1):
-            rev = Revision.from_json(rec, where=f"{self.path}: record {i}")
+            if not isinstance(rec, dict):
+                raise InvalidInput(f"must be a JSON object, got {type(rec).__name__}", file=str(self.path),
+                                   element=f"record {i}")
+            try:
+                rev = Revision.from_json(rec, where=f"record {i}")
+            except InvalidInput as exc:
+                raise InvalidInput([Problem(str(self.path), p.element, p.message) for p in exc.problems]) from None
+            if not isinstance(rev.params, dict) or isinstance(rev.version, bool) or not isinstance(rev.version, int):
+                raise InvalidInput("version must be a whole number and params an object", file=str(self.path),
+                                   element=f"record {i}")
             if rev.version != i:
                 raise InvalidInput(f"record {i} says version {rev.version}; versions must count 1, 2, ...",
                                    file=str(self.path))
@@ -243,7 +254,14 @@ class History:
         """Every version: [original, after revision 1, after revision 2, ...]."""
         nets = [load_skill(self.original)]
         for rev in self.revisions():
-            nets.append(apply(nets[-1], rev))
+            try:
+                nets.append(apply(nets[-1], rev))
+            except InvalidInput as exc:   # name the history file and the record that does not replay
+                raise InvalidInput([Problem(str(self.path), f"record {rev.version} ({rev.operator} {rev.target})",
+                                            str(p)) for p in exc.problems]) from None
+            except (TypeError, ValueError, AttributeError) as exc:
+                raise InvalidInput(f"does not replay: {exc}", file=str(self.path),
+                                   element=f"record {rev.version} ({rev.operator} {rev.target})") from None
         return nets
 
     def latest(self) -> APN:

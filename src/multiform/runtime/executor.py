@@ -8,8 +8,11 @@ looks at simulator internals, except to keep poses for a video when asked; the e
 goes into the trace (``Trace.final_info``) for the experimenter's physical success check only.
 
 Works on any env that exposes ``observation_names`` and ``command_names`` (on ``env.unwrapped``)
-matching the skill's variables and commands. A non-finite or diverging state, or an env that
-terminates on divergence, ends the trial as ``diverged`` (a failure), never a crash.
+matching the skill's variables and commands. A state beyond the skill's divergence threshold, or an
+env that terminates on divergence, ends the trial as ``diverged`` (a failure of the skill). A
+non-finite value anywhere in the tick (an observation, a law's output, a torque, or a simulator
+that reset on bad values) ends it at once as a ``fault``: the value never reaches the simulator,
+``Trace.fault`` says where it arose, and a fault is never evidence about the skill.
 """
 
 from __future__ import annotations
@@ -137,12 +140,17 @@ class Executor:
         plan: list[tuple[Law, Any, np.ndarray, list[int]]] = []
         n_fired = 0
         inverse = self.inverse_model
-        outcome = "timeout"
+        outcome, fault = "timeout", ""
         k = 0
         dt = self.dt
         for k in range(n_ticks):
             t = k * dt
-            if runner.tick(obs.tolist(), t):
+            olist = obs.tolist()
+            s = sum(olist)
+            if s - s:                    # NaN or ±inf somewhere (finite sums give 0.0)
+                outcome, fault = "fault", _first_bad("observation", self.obs_names, olist)
+                break
+            if runner.tick(olist, t):
                 marks.append((k, list(runner.marking)))
             values = runner.values
             rec_obs[k] = obs
@@ -167,24 +175,38 @@ class Executor:
                     bad |= not math.isfinite(c)
                     cmd[i] = c
             if bad:                      # a law that cannot say what to do ends the trial, never the robot
-                outcome = "diverged"
-                rec_raw[k] = cmd
+                outcome = "fault"
+                fault = self._law_fault(plan, values)
+                rec_raw[k] = [c if math.isfinite(c) else 0.0 for c in cmd]
                 break
             rec_raw[k] = cmd
             cmd = sat.command(cmd, values, k)
             rec_cmd[k] = cmd
             if inverse is not None:
-                action = sat.torque(inverse.torques(obs, cmd), k)
+                tau = inverse.torques(obs, cmd)
+                tlist = tau.tolist()
+                s = sum(tlist)
+                if s - s:
+                    outcome, fault = "fault", _first_bad("inverse model torque", range(len(tlist)), tlist)
+                    break
+                action = sat.torque(tau, k)
             else:
                 action = np.asarray(cmd)
             if perturb is not None:
                 perturb(k, runner, env)
             obs, _, terminated, truncated, info = env.step(action)
             if terminated:
-                outcome = "diverged" if info.get("diverged", True) else "failure"
+                if info.get("non_finite"):
+                    outcome, fault = "fault", "simulator state (non-finite; the simulator reset)"
+                else:
+                    outcome = "diverged" if info.get("diverged", True) else "failure"
                 k += 1
                 break
         n = min(k + 1, n_ticks)
+        if outcome == "fault" and len(slot_rows) < n:
+            n = max(len(slot_rows), 1)   # a fault before the net saw the tick's state keeps what it had
+            if not slot_rows:
+                slot_rows.append([0.0] * len(runner.values))
         if outcome == "timeout":
             n = n_ticks
         rec_mark = np.zeros((n, n_places), np.int16)
@@ -203,7 +225,25 @@ class Executor:
                      enabled_ticks=dict(zip(self.apn.transition_ids, runner.enabled_ticks)),
                      held_ticks=dict(zip(self.apn.transition_ids, runner.held_ticks)),
                      qpos=np.array(poses) if poses else None, qpos_every=qpos_every,
-                     wall_time=_time.perf_counter() - wall0, final_info=dict(info or {}))
+                     wall_time=_time.perf_counter() - wall0, final_info=dict(info or {}), fault=fault)
+
+    def _law_fault(self, plan: list[tuple[Law, Any, np.ndarray, list[int]]], values: list[float]) -> str:
+        """Which law gave which non-finite command (asked again: only on the fault's path)."""
+        for law, getter, buf, outs in plan:
+            buf[:] = getter(values)
+            for c, i in zip(law.predict_one(buf).tolist(), outs):
+                if not math.isfinite(c):
+                    name = next(n for n, p in self._plans.items() if p[0] is law)
+                    return f"law {name} output {self.cmd_names[i]} = {c}"
+        return "law output"
+
+
+def _first_bad(what: str, names: Sequence[Any], values: Sequence[float]) -> str:
+    """``what name`` of the first non-finite value (the fault's place in a trace)."""
+    for name, v in zip(names, values):
+        if not math.isfinite(v):
+            return f"{what} {name} = {v}".strip()
+    return what
 
 
 @contextlib.contextmanager

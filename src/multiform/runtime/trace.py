@@ -15,7 +15,7 @@ from ..petri.firing import Choice, Firing
 
 TRACE_KIND = "trial_trace"
 TRACE_VERSION = 1
-OUTCOMES = ("success", "failure", "timeout", "diverged")
+OUTCOMES = ("success", "failure", "timeout", "diverged", "fault")
 
 
 @dataclass
@@ -35,7 +35,7 @@ class Trace:
     dwell: np.ndarray               # (T, n_places) float32, place clocks
     place_ids: tuple[str, ...]
     firings: list[Firing]
-    outcome: str                    # success | failure | timeout | diverged
+    outcome: str                    # success | failure | timeout | diverged | fault
     choices: list[Choice] = field(default_factory=list)
     net_version: int = 0
     options: dict[str, Any] = field(default_factory=dict)
@@ -47,6 +47,7 @@ class Trace:
     wall_time: float = 0.0
     final_info: dict[str, Any] = field(default_factory=dict)  # env info at the end, for the experimenter's
     # physical success check (never read by the robot; not saved)
+    fault: str = ""                 # outcome "fault": where a non-finite value arose (never repair evidence)
 
     @property
     def num_ticks(self) -> int:
@@ -103,7 +104,8 @@ class Trace:
                 "place_ids": list(self.place_ids), "outcome": self.outcome, "net_version": self.net_version,
                 "options": self.options, "clips": self.clips, "enabled_ticks": self.enabled_ticks,
                 "held_ticks": self.held_ticks,
-                "choices": [[c.tick, c.chosen, list(c.candidates)] for c in self.choices], "qpos_every": self.qpos_every, "wall_time": self.wall_time}
+                "choices": [[c.tick, c.chosen, list(c.candidates)] for c in self.choices], "qpos_every": self.qpos_every, "wall_time": self.wall_time,
+                "fault": self.fault}
         save_npz(path, arrays, meta, TRACE_KIND, TRACE_VERSION)
 
     @classmethod
@@ -132,4 +134,4 @@ class Trace:
                    options=meta.get("options", {}), clips=meta.get("clips", {}),
                    enabled_ticks=meta.get("enabled_ticks", {}), held_ticks=meta.get("held_ticks", {}),
                    qpos=arrays.get("qpos"), qpos_every=int(meta.get("qpos_every", 0)),
-                   wall_time=float(meta.get("wall_time", 0.0)))
+                   wall_time=float(meta.get("wall_time", 0.0)), fault=str(meta.get("fault", "")))

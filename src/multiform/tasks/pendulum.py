@@ -224,7 +224,7 @@ def train_inverse_model(model, seed: int = 0, log=print, laws_ready=lambda: None
         return _exercises(model, rng)
 
     inv, info = train_inverse(make, seed=seed, exercises=exercises, log=log)
-    inv.save(model.path / "inverse_model.npz")
+    model.save_inverse_model(inv)
     env = make()
     try:
         ref = tracking_error(env, ReferenceController(), 10.0, seed=seed + 77)
