@@ -308,8 +308,8 @@ def cmd_practice(args: argparse.Namespace) -> int:
     task = get_task(args.task)
     scen = {s["name"]: s for s in task.scenarios()}
     if args.scenario not in scen:
-        print(f"unknown scenario {args.scenario!r}; {args.task} has: {', '.join(scen)}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+        raise InvalidInput(f"unknown scenario {args.scenario!r}; {args.task} has: {', '.join(scen)}",
+                           element="--scenario")
     sc = scen[args.scenario]
     cfg = PracticeConfig(max_trials=args.max_trials, seed=args.seed + sc.get("seed", 0), **sc.get("config", {}))
     practice = Practice(model, args.out or Path(args.model) / "practice" / args.scenario, cfg,

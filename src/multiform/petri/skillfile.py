@@ -100,6 +100,8 @@ def parse_skill(text: str, file: str = "<string>") -> APN:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}" if mark is not None else ""
         raise InvalidInput(f"not valid YAML ({getattr(exc, 'problem', exc)})", file=file, element=where) from None
+    except RecursionError:
+        raise InvalidInput("nested too deeply to read", file=file) from None
     finally:
         loader.dispose()
     problems = [Problem(file, f"line {line}", f"duplicate id {key!r}") for key, line in loader.duplicates]

@@ -1,0 +1,340 @@
+"""Every command on hostile input: exit status 2, one error line naming the culprit (a file with
+several problems lists the others below it), no traceback, nothing written or changed on disk, no
+module imported from data."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from multiform.cli import main
+from multiform.demos.dataset import write_dataset
+from multiform.demos.record import record_many
+from multiform.job import train_model
+from multiform.model import SkillModel
+from multiform.tasks import pendulum as task
+
+EVIL = "multiform_evil_module"          # a module that leaves a mark when imported
+
+
+@pytest.fixture(scope="module")
+def lab(tmp_path_factory) -> Path:
+    """Four mentor demos and a model trained from them (the env takes the hand command itself)."""
+    root = tmp_path_factory.mktemp("hostile")
+    eps = record_many("pendulum", [0, 1, 2, 9], task.DEMO_ENV_KWARGS)
+    demos = write_dataset(root / "demos.h5", eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)
+    model = SkillModel.create(root / "model", task.SKILL, demos, task.ENV_ID, task.DEMO_ENV_KWARGS)
+    train_model(model, seed=0, log=lambda *a: None)
+    (root / "run").mkdir()
+    return root
+
+
+@pytest.fixture()
+def work(lab, tmp_path, monkeypatch) -> Path:
+    w = tmp_path / "w"
+    shutil.copytree(lab, w)
+    manifest = w / "model" / "model.json"
+    manifest.write_text(manifest.read_text().replace(str((lab / "demos.h5").resolve()), str((w / "demos.h5").resolve())))
+    (w / "cwd").mkdir()
+    monkeypatch.chdir(w / "cwd")
+    # a module on the path that leaves a mark if anything imports it
+    (w / "mods").mkdir()
+    (w / "mods" / f"{EVIL}.py").write_text(f"open({str(w / 'imported')!r}, 'w').write('x')\n")
+    monkeypatch.syspath_prepend(str(w / "mods"))
+    return w
+
+
+def snapshot(root: Path) -> dict[str, str]:
+    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else "dir"
+            for p in sorted(root.rglob("*"))}
+
+
+def edit_json(path: Path, fn: Callable[[dict], object]) -> None:
+    d = json.loads(path.read_text())
+    out = fn(d)
+    path.write_text(json.dumps(d if out is None else out))
+
+
+def with_nan(path: Path) -> None:
+    """Put a NaN into the first float array of an .npz, keeping everything else (pickle-free)."""
+    with np.load(path, allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    key = next(k for k, v in arrays.items() if v.dtype.kind == "f" and v.size)
+    arrays[key] = arrays[key].copy()
+    arrays[key].flat[0] = np.nan
+    with open(path, "wb") as fh:
+        np.savez(fh, **arrays)
+
+
+def rehash(model: Path, rel: str) -> None:
+    """What a careful forger does: update the manifest's hash after changing the file."""
+    digest = hashlib.sha256((model / rel).read_bytes()).hexdigest()
+    edit_json(model / "model.json", lambda d: d["artifacts"][rel].update(sha256=digest))
+
+
+def skill_file(w: Path, text: str, name: str = "bad.yaml") -> str:
+    (w / name).write_text(text)
+    return str(w / name)
+
+
+def _env_name(path: Path, env_id: str) -> None:
+    with h5py.File(path, "r+") as f:
+        d = f["data"].attrs
+        args = json.loads(d["env_args"])
+        args["env_name"] = env_id
+        d["env_args"] = json.dumps(args)
+
+
+def _history(w: Path, line: str) -> None:
+    (w / "model" / "skill.history.jsonl").write_text(line + "\n")
+
+
+def do(*steps):
+    """Side effects evaluated in order, then ``(argv, culprit)``: the last two values."""
+    return steps[-2], steps[-1]
+
+
+M = ["practice"]                    # practice runs the model: it checks everything first
+
+# Each case: (id, setup) where setup(work) prepares the hostile input and returns (argv, culprit):
+# the text the error line must contain.
+CASES: list[tuple[str, Callable[[Path], tuple[list[str], str]]]] = [
+    # -- argument parsing ---------------------------------------------------------------------------
+    ("no_command", lambda w: do([], "required")),
+    ("unknown_command", lambda w: do(["fly"], "fly")),
+    ("check_max_states_zero", lambda w: do(["check", "pendulum", "--max-states", "0"], "--max-states")),
+    ("check_max_states_huge", lambda w: do(["check", "pendulum", "--max-states", str(10**12)], "--max-states")),
+    ("check_max_states_text", lambda w: do(["check", "pendulum", "--max-states", "many"], "--max-states")),
+    ("record_demos_zero", lambda w: do(["record", "pendulum", "--demos", "0", "-o", "d.h5"], "--demos")),
+    ("record_demos_million", lambda w: do(["record", "pendulum", "--demos", "1000000", "-o", "d.h5"], "--demos")),
+    ("record_seed_negative", lambda w: do(["record", "pendulum", "--seed", "-1", "-o", "d.h5"], "--seed")),
+    ("record_workers_zero", lambda w: do(["record", "pendulum", "--workers", "0", "-o", "d.h5"], "--workers")),
+    ("record_unknown_task", lambda w: do(["record", "juggling", "-o", "d.h5"], "juggling")),
+    ("demo_demos_zero", lambda w: do(["demo", "pendulum", "--demos", "0", "-o", "run2"], "--demos")),
+    ("demo_demos_million", lambda w: do(["demo", "pendulum", "--demos", "1000000", "-o", "run2"], "--demos")),
+    ("demo_seed_negative", lambda w: do(["demo", "pendulum", "--seed", "-1", "-o", "run2"], "--seed")),
+    ("demo_eval_trials_zero", lambda w: do(["demo", "pendulum", "--eval-trials", "0", "-o", "run2"], "--eval-trials")),
+    ("demo_workers_zero", lambda w: do(["demo", "pendulum", "--workers", "0", "-o", "run2"], "--workers")),
+    ("demo_budget_negative", lambda w: do(["demo", "pendulum", "--practice-budget", "-3", "-o", "r"],
+                                          "--practice-budget")),
+    ("practice_max_trials_negative", lambda w: do([*M, str(w / "model"), "--max-trials", "-5"], "--max-trials")),
+    ("practice_max_trials_zero", lambda w: do([*M, str(w / "model"), "--max-trials", "0"], "--max-trials")),
+    ("practice_seed_negative", lambda w: do([*M, str(w / "model"), "--seed", "-1"], "--seed")),
+    ("practice_stop_after_zero", lambda w: do([*M, str(w / "model"), "--stop-after", "0"], "--stop-after")),
+    ("train_seed_negative", lambda w: do(["train", "pendulum", str(w / "demos.h5"), "-o", "m", "--seed", "-1"],
+                                         "--seed")),
+    ("teleop_seed_negative", lambda w: do(["teleop", "pendulum", "-o", "t.h5", "--seed", "-2"], "--seed")),
+    ("net_diff_width_tiny", lambda w: do(["net", "diff", "pendulum", "0", "0", "--width", "3"], "--width")),
+    ("label_seed_text", lambda w: do(["label", str(w / "demos.h5"), "-m", str(w / "model"), "--seed", "x"], "--seed")),
+    # -- skill files and nets -----------------------------------------------------------------------
+    ("check_missing_file", lambda w: do(["check", str(w / "nope.yaml")], "nope.yaml")),
+    ("check_folder", lambda w: do(["check", str(w / "model")], "model")),
+    ("check_binary", lambda w: do((w / "b.yaml").write_bytes(bytes(range(256)) * 4), ["check", str(w / "b.yaml")],
+                                  "b.yaml")),
+    ("check_not_yaml", lambda w: do(["check", skill_file(w, "skill: [unclosed")], "bad.yaml")),
+    ("check_yaml_list", lambda w: do(["check", skill_file(w, "- a\n- b\n")], "bad.yaml")),
+    ("check_deep_yaml", lambda w: do(["check", skill_file(w, "a: " + "[" * 20000 + "]" * 20000)], "bad.yaml")),
+    ("draw_missing_version", lambda w: do(["draw", "pendulum", "--version", "5"], "version 5")),
+    ("draw_history_not_object", lambda w: do((w / "h.jsonl").write_text("[1, 2]\n"),
+                                             ["draw", "pendulum", "--history", str(w / "h.jsonl"), "--version", "1"],
+                                             "h.jsonl")),
+    ("net_history_bad_json", lambda w: do((w / "h.jsonl").write_text("{nope\n"),
+                                          ["net", "history", "pendulum", "--history", str(w / "h.jsonl")], "h.jsonl")),
+    ("net_history_missing_params", lambda w: do(
+        (w / "h.jsonl").write_text(json.dumps({"version": 1, "operator": "set_lambda", "target": "t1", "reason": "x"})),
+        ["net", "history", "pendulum", "--history", str(w / "h.jsonl")], "params")),
+    ("net_diff_replay_fails", lambda w: do(
+        (w / "h.jsonl").write_text(json.dumps({"version": 1, "operator": "set_lambda", "target": "t99", "reason": "x",
+                                               "params": {"transition": "t99", "lambda": 0.5}})),
+        ["net", "diff", "pendulum", "0", "1", "--history", str(w / "h.jsonl")], "record 1")),
+    ("net_export_missing_version", lambda w: do(["net", "export", "pendulum", "--version", "3"], "version 3")),
+    ("net_import_missing", lambda w: do(["net", "import", str(w / "none.pnml")], "none.pnml")),
+    ("net_import_not_xml", lambda w: do((w / "x.pnml").write_text("not xml at all"), ["net", "import", str(w / "x.pnml")],
+                                        "x.pnml")),
+    ("net_import_entities", lambda w: do(
+        (w / "e.pnml").write_text('<?xml version="1.0"?><!DOCTYPE lolz [<!ENTITY lol "lol"><!ENTITY lol2 '
+                                  '"&lol;&lol;&lol;">]><pnml><net id="n">&lol2;</net></pnml>'),
+        ["net", "import", str(w / "e.pnml")], "e.pnml")),
+    # -- demonstration files ------------------------------------------------------------------------
+    ("demos_info_missing", lambda w: do(["demos", "info", str(w / "none.h5")], "none.h5")),
+    ("demos_info_text", lambda w: do((w / "t.h5").write_text("hello"), ["demos", "info", str(w / "t.h5")], "t.h5")),
+    ("demos_info_empty_h5", lambda w: do(h5py.File(w / "e.h5", "w").close(), ["demos", "info", str(w / "e.h5")],
+                                         "e.h5")),
+    ("demos_info_truncated", lambda w: do((w / "tr.h5").write_bytes((w / "demos.h5").read_bytes()[:5000]),
+                                          ["demos", "info", str(w / "tr.h5")], "tr.h5")),
+    ("record_existing_file", lambda w: do(["record", "pendulum", "--demos", "1", "-o", str(w / "demos.h5")],
+                                          "demos.h5")),
+    ("record_folder_missing", lambda w: do(["record", "pendulum", "--demos", "1", "-o", str(w / "no" / "d.h5")],
+                                           "d.h5")),
+    ("record_under_a_file", lambda w: do(["record", "pendulum", "--demos", "1", "-o", str(w / "demos.h5" / "d.h5")],
+                                         "d.h5")),
+    ("record_onto_folder", lambda w: do(["record", "pendulum", "--demos", "1", "--overwrite", "-o", str(w / "model")],
+                                        "model")),
+    ("teleop_existing_without_append", lambda w: do(["teleop", "pendulum", "-o", str(w / "demos.h5")], "demos.h5")),
+    ("teleop_time_scale_zero", lambda w: do(["teleop", "pendulum", "-o", "t.h5", "--time-scale", "0"],
+                                            "--time-scale")),
+    ("teleop_max_duration_nan", lambda w: do(["teleop", "pendulum", "-o", "t.h5", "--max-duration", "nan"],
+                                             "--max-duration")),
+    ("teleop_no_display", lambda w: do(["teleop", "pendulum", "-o", "t.h5"], "display")),
+    # -- training -----------------------------------------------------------------------------------
+    ("train_into_existing_model", lambda w: do(["train", "pendulum", str(w / "demos.h5"), "-o", str(w / "model")],
+                                               "model")),
+    ("train_missing_skill", lambda w: do(["train", str(w / "s.yaml"), str(w / "demos.h5"), "-o", "m"], "s.yaml")),
+    ("train_demos_not_h5", lambda w: do((w / "d.txt").write_text("x"), ["train", "pendulum", str(w / "d.txt"), "-o", "m"],
+                                        "d.txt")),
+    ("train_inverse_without_trainer", lambda w: do(
+        shutil.copy(w / "demos.h5", w / "n.h5"), _env_name(w / "n.h5", "Other-v0"),
+        ["train", "pendulum", str(w / "n.h5"), "-o", "m", "--inverse-model"], "--inverse-model")),
+    # -- model directories --------------------------------------------------------------------------
+    ("practice_not_a_model", lambda w: do([*M, str(w / "cwd")], "skill.yaml")),
+    ("practice_unknown_scenario", lambda w: do([*M, str(w / "model"), "--scenario", "zz"], "zz")),
+    ("model_json_not_json", lambda w: do((w / "model" / "model.json").write_text("{"), [*M, str(w / "model")],
+                                         "model.json")),
+    ("model_json_list", lambda w: do((w / "model" / "model.json").write_text("[]"), [*M, str(w / "model")],
+                                     "model.json")),
+    ("model_json_old_version", lambda w: do(edit_json(w / "model" / "model.json", lambda d: d.update(format_version=1)),
+                                            [*M, str(w / "model")], "manifest version")),
+    ("model_env_wrong_type", lambda w: do(edit_json(w / "model" / "model.json", lambda d: d.update(env=42)),
+                                          [*M, str(w / "model")], "env")),
+    ("model_env_kwargs_wrong_type", lambda w: do(edit_json(w / "model" / "model.json", lambda d: d.update(env_kwargs=[1])),
+                                                 [*M, str(w / "model")], "env_kwargs")),
+    ("model_env_imports_module", lambda w: do(
+        edit_json(w / "model" / "model.json", lambda d: d.update(env=f"{EVIL}:Foo-v0")), [*M, str(w / "model")], EVIL)),
+    ("model_env_unregistered", lambda w: do(edit_json(w / "model" / "model.json", lambda d: d.update(env="Nope-v9")),
+                                            [*M, str(w / "model")], "Nope-v9")),
+    ("model_torque_without_inverse", lambda w: do(
+        edit_json(w / "model" / "model.json", lambda d: d["env_kwargs"].update(action_mode="torque")),
+        [*M, str(w / "model")], "inverse_model.npz")),
+    ("model_listed_artifact_deleted", lambda w: do((w / "model" / "judges" / "P1.npz").unlink(),
+                                                   [*M, str(w / "model")], "P1.npz")),
+    ("model_law_deleted", lambda w: do((w / "model" / "laws" / "balance.npz").unlink(), [*M, str(w / "model")],
+                                       "balance.npz")),
+    ("model_law_nan_hash_stale", lambda w: do(with_nan(w / "model" / "laws" / "balance.npz"), [*M, str(w / "model")],
+                                              "balance.npz")),
+    ("model_law_nan_forged_hash", lambda w: do(with_nan(w / "model" / "laws" / "balance.npz"),
+                                               rehash(w / "model", "laws/balance.npz"), [*M, str(w / "model")],
+                                               "non-finite")),
+    ("model_judge_nan_forged_hash", lambda w: do(with_nan(w / "model" / "judges" / "P2.npz"),
+                                                 rehash(w / "model", "judges/P2.npz"), [*M, str(w / "model")],
+                                                 "P2.npz")),
+    ("model_regions_nan_forged_hash", lambda w: do(with_nan(w / "model" / "regions.npz"),
+                                                   rehash(w / "model", "regions.npz"), [*M, str(w / "model")],
+                                                   "regions.npz")),
+    ("model_regions_bitflip", lambda w: do(
+        (w / "model" / "regions.npz").write_bytes((w / "model" / "regions.npz").read_bytes()[:-40] + b"\x00" * 40),
+        [*M, str(w / "model")], "regions.npz")),
+    ("model_unlisted_law", lambda w: do(shutil.copy(w / "model" / "laws" / "balance.npz", w / "model" / "laws" / "x.npz"),
+                                        [*M, str(w / "model")], "x.npz")),
+    ("model_artifact_path_escapes", lambda w: do(
+        edit_json(w / "model" / "model.json",
+                  lambda d: d["artifacts"].update({"../../etc/passwd": {"kind": "law", "sha256": "0" * 64}})),
+        [*M, str(w / "model")], "passwd")),
+    ("model_skill_changed", lambda w: do(
+        (w / "model" / "skill.yaml").write_text((w / "model" / "skill.yaml").read_text() + "\n# edited\n"),
+        [*M, str(w / "model")], "skill.yaml")),
+    ("model_history_not_object", lambda w: do(_history(w, "7"), [*M, str(w / "model")], "record 1")),
+    ("model_history_unknown_operator", lambda w: do(
+        _history(w, json.dumps({"version": 1, "operator": "rm_rf", "target": "/", "reason": "", "params": {}})),
+        [*M, str(w / "model")], "rm_rf")),
+    ("label_not_a_model", lambda w: do(["label", str(w / "demos.h5"), "-m", str(w / "cwd"), "--script", "s"],
+                                       "skill.yaml")),
+    ("label_model_tampered", lambda w: do((w / "model" / "judges" / "P1.npz").write_bytes(b"PK\x03\x04junk"),
+                                          ["label", str(w / "demos.h5"), "-m", str(w / "model"), "--script", "s"],
+                                          "P1.npz")),
+    # -- run folders --------------------------------------------------------------------------------
+    ("report_no_metrics", lambda w: do(["report", str(w / "run")], "metrics.json")),
+    ("report_metrics_broken", lambda w: do((w / "run" / "metrics.json").write_text('{"skill": '),
+                                           ["report", str(w / "run")], "metrics.json")),
+    ("report_metrics_list", lambda w: do((w / "run" / "metrics.json").write_text("[1]"), ["report", str(w / "run")],
+                                         "metrics.json")),
+    ("report_metrics_wrong_types", lambda w: do(
+        (w / "run" / "metrics.json").write_text(json.dumps({"skill": "pendulum", "success_rate": 5, "demos": 3})),
+        ["report", str(w / "run")], "metrics.json")),
+    ("demo_out_under_a_file", lambda w: do(["demo", "pendulum", "--demos", "2", "-o", str(w / "demos.h5" / "run")],
+                                           "run")),
+]
+
+
+def run(argv: list[str]) -> int:
+    try:
+        return main(argv)
+    except SystemExit as exc:        # argparse
+        return int(exc.code or 0)
+
+
+@pytest.mark.parametrize("case", [c[0] for c in CASES])
+def test_hostile_input_is_refused_in_one_line_and_changes_nothing(work, case, capsys, monkeypatch):
+    setup = dict(CASES)[case]
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    argv, culprit = setup(work)
+    before = snapshot(work)
+    code = run(argv)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    first, *more = err.strip().splitlines()
+    assert first.startswith("multiform") and "error" in first and culprit in first, err
+    # a file with several problems lists the others, one per line, each naming the file again
+    assert all(line.startswith("  ") and culprit in line for line in more), err
+    assert "Traceback" not in err
+    assert snapshot(work) == before
+    assert not (work / "imported").exists() and EVIL not in sys.modules
+
+
+def test_there_are_at_least_sixty_cases():
+    assert len(CASES) >= 60
+
+
+def test_default_outputs_stay_in_the_current_folder(work, capsys):
+    """A net named like a path (from a file anyone may have written) lands as a base name here."""
+    text = (Path(task.__file__).parent.parent / "skills" / "pendulum.yaml").read_text()
+    evil = skill_file(work, text.replace("skill: pendulum", "skill: ../../../evil/net", 1), "evil.yaml")
+    assert run(["net", "export", evil]) == 0
+    assert run(["draw", evil]) == 0
+    assert sorted(p.name for p in Path.cwd().iterdir()) == ["net.pnml", "net.svg"]
+    assert not (work.parent.parent / "evil").exists()
+    assert run(["net", "import", "net.pnml"]) == 0
+    assert (Path.cwd() / "net.yaml").exists()
+
+
+def test_internal_errors_are_one_line_unless_debug(work, capsys, monkeypatch):
+    import multiform.cli as cli
+
+    def boom(args):
+        raise RuntimeError("a bug")
+    monkeypatch.setattr(cli, "cmd_check", boom)
+    assert run(["check", "pendulum"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "RuntimeError: a bug" in err and "--debug" in err
+    with pytest.raises(RuntimeError):
+        main(["--debug", "check", "pendulum"])
+
+
+def test_the_model_lists_every_artifact_with_its_hash(lab):
+    model = SkillModel(lab / "model")
+    listed = model.manifest["artifacts"]
+    on_disk = {p.relative_to(model.path).as_posix() for p in model.path.rglob("*.npz")} | {"skill.yaml"}
+    assert set(listed) == on_disk
+    for rel, info in listed.items():
+        assert info["sha256"] == hashlib.sha256((model.path / rel).read_bytes()).hexdigest()
+    assert model.problems() == []
+
+
+def test_training_that_fails_leaves_no_model_behind(lab, tmp_path, monkeypatch, capsys):
+    import multiform.job as job
+
+    def fail(*a, **k):
+        raise OSError(28, "No space left on device", str(tmp_path / "m" / "laws"))
+    monkeypatch.setattr(job, "train_model", fail)
+    assert run(["train", "pendulum", str(lab / "demos.h5"), "-o", str(tmp_path / "m")]) == 2
+    assert "No space left on device" in capsys.readouterr().err
+    assert sorted(os.listdir(tmp_path)) == []
