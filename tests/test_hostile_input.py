@@ -338,3 +338,132 @@ def test_training_that_fails_leaves_no_model_behind(lab, tmp_path, monkeypatch, 
     assert run(["train", "pendulum", str(lab / "demos.h5"), "-o", str(tmp_path / "m")]) == 2
     assert "No space left on device" in capsys.readouterr().err
     assert sorted(os.listdir(tmp_path)) == []
+
+
+# -- faults: a non-finite value in the tick ends the trial at once, never reaches MuJoCo, teaches nothing
+
+class _Watch:
+    """Wraps the env's step: every action and every ctrl MuJoCo held after the step must be finite."""
+
+    def __init__(self, env):
+        self.env, self.bad, self.steps = env, 0, 0
+        inner = env.step
+
+        def step(action):
+            self.bad += int(not np.isfinite(np.asarray(action, float)).all())
+            out = inner(action)
+            self.bad += int(not np.isfinite(env.unwrapped.data.ctrl).all())
+            self.steps += 1
+            return out
+        env.step = step
+
+
+class _NaNAfter:
+    """A learned piece that turns non-finite after ``tick`` calls (a corrupt artifact in memory)."""
+
+    def __init__(self, inner, tick: int, method: str):
+        self.inner, self.tick, self.calls, self.method = inner, tick, 0, method
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)
+
+    def _wrap(self, *a):
+        self.calls += 1
+        out = np.array(getattr(self.inner, self.method)(*a), dtype=float)
+        return out * np.nan if self.calls > self.tick else out
+
+    def predict_one(self, x):
+        return self._wrap(x)
+
+    def torques(self, obs, cmd):
+        return self._wrap(obs, cmd)
+
+
+class _ZeroTorque:
+    def torques(self, obs, cmd):
+        return np.zeros(6)
+
+
+def _sim_nan(tick: int):
+    def perturb(k, runner, env):
+        if k == tick:
+            env.unwrapped.data.qvel[0] = np.nan
+    return perturb
+
+
+@pytest.mark.parametrize("where", ["law", "inverse_model", "simulator_state", "observation"])
+def test_a_non_finite_value_ends_the_trial_as_a_fault_before_it_reaches_mujoco(lab, where):
+    from multiform.runtime.executor import Executor
+    model = SkillModel(lab / "model")
+    kwargs = {"action_mode": "torque"} if where == "inverse_model" else {}
+    env = model.make_env(**kwargs)
+    watch = _Watch(env)
+    laws = model.laws()
+    inverse = None
+    perturb = None
+    if where == "law":
+        laws = {name: _NaNAfter(law, 300, "predict_one") for name, law in laws.items()}
+    elif where == "inverse_model":
+        inverse = _NaNAfter(_ZeroTorque(), 20, "torques")
+    elif where == "simulator_state":
+        perturb = _sim_nan(300)
+    else:
+        inner = env.unwrapped._observe
+
+        def observe():
+            obs = inner()
+            return obs * np.nan if env.unwrapped.data.time > 0.3 else obs
+        env.unwrapped._observe = observe
+    ex = Executor(model.apn, env, laws, model.conditions(), inverse)
+    trace = ex.run(seed=5, perturb=perturb)
+    assert trace.outcome == "fault" and not trace.success
+    expected = {"law": "law ", "inverse_model": "inverse model torque", "simulator_state": "simulator state",
+                "observation": "observation"}[where]
+    assert trace.fault.startswith(expected), trace.fault
+    assert watch.bad == 0 and watch.steps <= (21 if where == "inverse_model" else 320)
+    assert np.isfinite(trace.commands).all()
+    assert task.physical_success(trace) is False and model.grade(trace, "x").score == 0.0
+    env.close()
+
+
+def test_practice_stops_at_a_fault_and_learns_nothing_from_it(work):
+    from multiform.adapt.practice import Practice, PracticeConfig
+    model = SkillModel(work / "model")
+    practice = Practice(model, work / "p", PracticeConfig(max_trials=10, failures_in_a_row=1),
+                        options=task.demo_options, perturb=lambda k: _sim_nan(200), name="a_strict")
+    state = practice.run()
+    assert state.stop_reason.startswith("fault in trial 0: simulator state") and not state.done
+    assert state.trials == [] and state.failed_since_repair == [] and state.revisions == []
+    assert model.version == 0 and (work / "p" / "faults" / "trial_0000.npz").exists()
+    assert not (work / "p" / "traces").exists()
+
+
+# -- two writers at once: one proceeds, one is refused, nothing is lost
+
+def test_a_second_writer_of_a_model_or_a_demos_file_is_refused(work, capsys):
+    import subprocess
+    import textwrap
+    holder = textwrap.dedent(f"""
+        import sys, time
+        from multiform.lock import exclusive
+        with exclusive({str(work / 'model')!r}), exclusive({str(work / 'cwd' / 'd.h5')!r}):
+            print("holding", flush=True)
+            time.sleep(60)
+    """)
+    proc = subprocess.Popen([sys.executable, "-c", holder], stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline().strip() == "holding"
+        before = snapshot(work)
+        assert run(["practice", str(work / "model"), "--max-trials", "1"]) == 2
+        err = capsys.readouterr().err
+        assert f"in use by PID {proc.pid}" in err and "model" in err
+        assert run(["record", "pendulum", "--demos", "1", "-o", "d.h5"]) == 2
+        assert f"in use by PID {proc.pid}" in capsys.readouterr().err
+        assert snapshot(work) == before
+    finally:
+        proc.kill()
+        proc.wait()
+    # the holder is gone (killed, not cleaned up): its locks went with it
+    from multiform.lock import exclusive
+    with exclusive(work / "model"):
+        pass

@@ -172,6 +172,7 @@ class ArmPendulumEnv(gym.Env):
         self._qpos6 = d.qpos[:6]
         self._qvel6 = d.qvel[:6]
         self._ctrl = d.ctrl
+        self._tau = np.zeros(len(self._ctrl))
         self._xfrc = d.xfrc_applied[self._pend]
         self._quat = np.zeros(4)
         self._rv = np.zeros(3)
@@ -290,10 +291,17 @@ class ArmPendulumEnv(gym.Env):
         m, d = self.model, self.data
         if self.action_mode == "ee":
             a6 = task_acceleration_list(self._obs_list, float(action[0]), self.gains)
-            self._ctrl[:] = torques_for(a6, m, d, self.torque_limits, self._work)
-        else:     # np.minimum/np.maximum into ctrl: np.clip's Python wrapper costs more than the clipping
-            np.minimum(action, self.torque_limits, out=self._ctrl)
-            np.maximum(self._ctrl, self._neg_limits, out=self._ctrl)
+            tau = torques_for(a6, m, d, self.torque_limits, self._work)
+        else:     # np.minimum/np.maximum: np.clip's Python wrapper costs more than the clipping
+            tau = self._tau
+            np.minimum(action, self.torque_limits, out=tau)
+            np.maximum(tau, self._neg_limits, out=tau)
+        s = sum(tau.tolist())
+        if not s - s:
+            self._ctrl[:] = tau
+        else:                      # a non-finite state or action: nothing non-finite goes into MuJoCo
+            return np.zeros(len(OBSERVATION_NAMES)), 0.0, True, False, {
+                "diverged": True, "non_finite": True, "out_of_workspace": False, "disturbance": self._applied}
         t = d.time
         if self._pulses:
             self._disturb(t)
