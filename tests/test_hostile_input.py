@@ -259,6 +259,13 @@ CASES: list[tuple[str, Callable[[Path], tuple[list[str], str]]]] = [
     ("report_metrics_wrong_types", lambda w: do(
         (w / "run" / "metrics.json").write_text(json.dumps({"skill": "pendulum", "success_rate": 5, "demos": 3})),
         ["report", str(w / "run")], "metrics.json")),
+    ("evaluate_not_a_model", lambda w: do(["evaluate", str(w / "cwd")], "skill.yaml")),
+    ("evaluate_trials_zero", lambda w: do(["evaluate", str(w / "model"), "--trials", "0"], "--trials")),
+    ("evaluate_push_fraction", lambda w: do(["evaluate", str(w / "model"), "--push-fraction", "2"], "--push-fraction")),
+    ("evaluate_missing_version", lambda w: do(["evaluate", str(w / "model"), "--version", "4"], "version 4")),
+    ("evaluate_tampered_law", lambda w: do((w / "model" / "laws" / "swing_up.npz").write_bytes(b"x"),
+                                           ["evaluate", str(w / "model")], "swing_up.npz")),
+    ("evaluate_out_is_a_file", lambda w: do(["evaluate", str(w / "model"), "--out", str(w / "demos.h5")], "demos.h5")),
     ("demo_out_under_a_file", lambda w: do(["demo", "pendulum", "--demos", "2", "-o", str(w / "demos.h5" / "run")],
                                            "run")),
 ]
@@ -467,3 +474,39 @@ def test_a_second_writer_of_a_model_or_a_demos_file_is_refused(work, capsys):
     from multiform.lock import exclusive
     with exclusive(work / "model"):
         pass
+
+
+def test_evaluate_runs_the_models_task_and_writes_every_trial(work, capsys):
+    assert run(["evaluate", str(work / "model"), "--trials", "4", "--workers", "1", "--out", "ev"]) == 0
+    out = capsys.readouterr().out
+    assert "success" in out and "95 % CI" in out
+    data = json.loads((Path("ev") / "evaluation.json").read_text())
+    assert data["task"] == "pendulum" and data["trials"] == 4 and len(data["trials_detail"]) == 4
+    assert [t["seed"] for t in data["trials_detail"]] == [s.seed for s in task.evaluation_specs(4, 0, 0.5)]
+    assert {"outcome", "self_success", "duration", "pushed"} <= set(data["trials_detail"][0])
+
+
+@pytest.mark.parametrize("artifact", ["inverse_model.npz", "condition"])
+def test_a_non_finite_inverse_model_or_condition_on_disk_is_refused_before_any_trial(work, artifact, capsys):
+    from multiform.learn.inverse import InverseDynamicsModel
+    from multiform.learn.servos import SERVOS
+    from multiform.model import ModelLearners
+    model = SkillModel(work / "model")
+    if artifact == "inverse_model.npz":
+        rng = np.random.default_rng(0)
+        n_obs = len(SERVOS["arm_pendulum"]().observation_names)
+        inv = InverseDynamicsModel(n_hyper=50).fit(rng.standard_normal((200, n_obs)), rng.standard_normal((200, 6)),
+                                                   rng.standard_normal((200, 6)))
+        model.save_inverse_model(inv)
+        rel = artifact
+    else:
+        name, _ = ModelLearners(model).region_condition(model.apn, "P1", "P2")
+        rel = f"conditions/{name}.npz"
+    assert model.problems() == []
+    with_nan(work / "model" / rel)
+    rehash(work / "model", rel)
+    before = snapshot(work)
+    assert run(["practice", str(work / "model")]) == 2
+    err = capsys.readouterr().err
+    assert rel.split("/")[-1] in err and "non-finite" in err and "Traceback" not in err
+    assert snapshot(work) == before

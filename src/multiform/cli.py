@@ -63,6 +63,17 @@ def _positive(text: str) -> float:
     return v
 
 
+def _fraction(text: str) -> float:
+    """An argparse type: a number in 0..1."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0.0 <= v <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be in 0..1, got {text}")
+    return v
+
+
 def _default_output(name: str, suffix: str) -> Path:
     """A default output file in the current folder, named for ``name`` (a net's name, which comes
     from a file and may hold a path): only its base name, in safe characters."""
@@ -303,8 +314,9 @@ def cmd_train(args: argparse.Namespace) -> int:
 def cmd_practice(args: argparse.Namespace) -> int:
     from .adapt.practice import Practice, PracticeConfig
     from .model import SkillModel
-    from .tasks import get_task
+    from .tasks import get_task, task_for_env
     model = SkillModel(args.model, env_modules=args.env_module)
+    args.task = args.task or task_for_env(model.manifest["env"])
     task = get_task(args.task)
     scen = {s["name"]: s for s in task.scenarios()}
     if args.scenario not in scen:
@@ -331,6 +343,39 @@ def cmd_practice(args: argparse.Namespace) -> int:
     state = practice.run(progress=show, stop_after=args.stop_after)
     print(f"{len(state.trials)} trials; {state.stop_reason or 'stopped'}")
     return 1 if state.stop_reason.startswith("fault") else 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from .adapt.evaluation import Variant, evaluate
+    from .io import write_json
+    from .lock import check_writable
+    from .model import SkillModel
+    from .tasks import get_task, task_for_env
+    model = SkillModel(args.model, env_modules=args.env_module)
+    name = args.task or task_for_env(model.manifest["env"])
+    task = get_task(name)
+    if args.version is not None:
+        model.history.version(args.version)          # refuses a version the model does not have
+    model.verify()
+    out = Path(args.out) / "evaluation.json" if args.out else None
+    if out is not None:
+        if Path(args.out).exists() and not Path(args.out).is_dir():
+            raise InvalidInput("is a file; give a folder", file=str(args.out))
+        check_writable(out if Path(args.out).is_dir() else Path(args.out))   # the folder is made at the end
+    specs = task.evaluation_specs(args.trials, args.seed, args.push_fraction)
+    variant = Variant(f"{model.apn.name} v{model.version if args.version is None else args.version}",
+                      str(Path(args.model).resolve()), net_version=args.version)
+    with _bar(len(specs), f"evaluating {name}") as bar:
+        res = evaluate(name, variant, specs, workers=args.workers, progress=lambda i, n: bar.update(1))
+    pushed = f"; pushed {res['pushed']['successes']}/{res['pushed']['trials']}" if res.get("pushed") else ""
+    print(f"success {100 * res['rate']:.1f} % ({res['successes']}/{res['trials']}; 95 % CI {100 * res['low']:.1f}-"
+          f"{100 * res['high']:.1f} %){pushed}; the robot's own verdict agreed on {100 * res['agreement']:.1f} %"
+          + (f"; {res['faults']} fault(s)" if res["faults"] else ""))
+    if out is not None:
+        write_json(out, {"model": str(args.model), "task": name, "seed": args.seed, "push_fraction": args.push_fraction,
+                         "net_version": variant.net_version, **res})
+        print(f"wrote {out}")
+    return 1 if res["faults"] else 0
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -474,7 +519,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("practice", help="practise a trained skill; repair the net on constant failure")
     p.add_argument("model", help="model directory")
-    p.add_argument("--task", default="pendulum", choices=["pendulum", "nunchaku"])
+    p.add_argument("--task", default=None, choices=["pendulum", "nunchaku"],
+                   help="the task (default: the one whose env the model runs)")
     p.add_argument("--scenario", default="a_strict", help="the task's practice scenario")
     p.add_argument("--out", help="practice folder (default MODEL/practice/SCENARIO)")
     p.add_argument("--max-trials", type=_count(1, 100_000), default=30)
@@ -485,6 +531,24 @@ def build_parser() -> argparse.ArgumentParser:
                    help="allow the model's env id to import MODULE (Gymnasium's module:Env-v0 form); a model "
                         "directory never imports code on its own")
     p.set_defaults(func=cmd_practice)
+
+    p = sub.add_parser("evaluate", help="run a trained model on the task's evaluation trials; success with its "
+                                        "95 % interval, the pushed split, the robot's own verdict")
+    p.add_argument("model", help="model directory")
+    p.add_argument("--task", default=None, choices=["pendulum", "nunchaku"],
+                   help="the task (default: the one whose env the model runs)")
+    p.add_argument("--trials", type=_count(1, 1_000_000), default=200)
+    p.add_argument("--seed", type=_count(0, 40_000), default=0, help="which trials (the main job's evaluation: 0)")
+    p.add_argument("--push-fraction", type=_fraction, default=0.5,
+                   help="share of the trials pushed while balancing (pendulum)")
+    p.add_argument("--version", "-v", type=_count(-1_000_000, 1_000_000), dest="version", default=None,
+                   help="net version to run (default: the latest)")
+    p.add_argument("--workers", type=_count(1, 256), default=2)
+    p.add_argument("--out", "-o", default=None,
+                   help="folder for evaluation.json: the rate, its interval, and one record per trial")
+    p.add_argument("--env-module", action="append", default=[], metavar="MODULE",
+                   help="allow the model's env id to import MODULE")
+    p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("demo", help="the main job: record, train, practise with repair, evaluate, report")
     p.add_argument("task", choices=["pendulum", "nunchaku"])

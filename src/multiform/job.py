@@ -333,9 +333,12 @@ def _fit_definition(model: SkillModel, apn: APN, eps: Sequence[Episode], store: 
         judges[place] = info
         model.update_manifest(training={"judges": judges})
         cv = info.get("cv_score")
-        log(f"  judge {place}: kernel {info['kernel']}, CV {'-' if cv is None else f'{cv:.3f}'}, held-out accuracy "
-            f"{info.get('heldout_accuracy', float('nan')):.3f} on {info.get('heldout_segments', 0)} segments"
-            + (f" (all {info['segments']} labels alike)" if info["success_labels"] in (0, info["segments"]) else ""))
+        if not info.get("informative", True):
+            log(f"  judge {place}: uninformative: {info['uninformative']}")
+            continue
+        held = (f", held-out accuracy {info['heldout_accuracy']:.3f} on {info['heldout_segments']} segments"
+                if "heldout_accuracy" in info else "")
+        log(f"  judge {place}: kernel {info['kernel']}, CV {'-' if cv is None else f'{cv:.3f}'}{held}")
     if "regions" not in summary or model.regions() is None:
         regions, info = fit_regions(apn, eps, seed=seed)
         model.save_regions(regions)

@@ -248,3 +248,13 @@ def test_frames_without_shadows_show_the_same_scene_less_shaded():
     diff = np.abs(lit - plain).max(axis=2)
     assert 0.0 < (diff > 30).mean() < 0.25                         # the shadows only, not another scene
     assert plain.mean() > lit.mean()                               # without them the floor is brighter
+
+
+@pytest.mark.parametrize("options", [{"length": float("inf")}, {"mass": float("nan")}, {"damping": float("inf")},
+                                     {"length": 1e9}, {"theta0": float("nan")}, {"omega0": float("inf")}])
+def test_non_finite_or_absurd_reset_options_are_refused(options):
+    import gymnasium as gym
+    env = gym.make("multiform/ArmPendulum-v0")
+    with pytest.raises(ValueError):
+        env.reset(seed=0, options=options)
+    env.close()

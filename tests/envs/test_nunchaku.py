@@ -204,3 +204,15 @@ def test_stable_over_randomised_trials_fast():
 @pytest.mark.slow
 def test_stable_over_1000_randomised_trials():
     assert _random_trials(1000, seed0=10_000) == 0
+
+
+@pytest.mark.parametrize("options", [{"rod_mass": float("nan")}, {"rod_length": -1.0}, {"swing": float("inf")},
+                                     {"ft_noise": float("nan")}])
+def test_non_finite_or_absurd_reset_options_are_refused(options):
+    import gymnasium as gym
+
+    import multiform.envs  # noqa: F401
+    env = gym.make("multiform/Nunchaku-v0")
+    with pytest.raises(ValueError):
+        env.reset(seed=0, options=options)
+    env.close()

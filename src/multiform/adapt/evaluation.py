@@ -86,7 +86,7 @@ def _run(variant: Variant, spec: TrialSpec) -> dict[str, Any]:
             "self_success": bool(trace.success and (grade is None or grade.success)),
             "judge_score": None if grade is None else round(grade.score, 4), "duration": round(trace.duration, 3),
             "pushed": spec.push is not None, "fired": trace.fired(), "wall": round(trace.wall_time, 3),
-            "clips": {c: v["count"] for c, v in trace.clips.items()}}
+            "clips": {c: v["count"] for c, v in trace.clips.items()}, **({"fault": trace.fault} if trace.fault else {})}
 
 
 def summarise(variant: Variant, results: Sequence[dict[str, Any]]) -> dict[str, Any]:
@@ -99,7 +99,7 @@ def summarise(variant: Variant, results: Sequence[dict[str, Any]]) -> dict[str, 
     return {"name": variant.name, "notes": variant.notes, **rate(ok, len(results)),
             "self_assessed": rate(self_ok, len(results)), "agreement": agree / max(1, len(results)),
             "pushed": rate(sum(r["success"] for r in pushed), len(pushed)) if pushed else None,
-            "trials_detail": results}
+            "faults": sum(r["outcome"] == "fault" for r in results), "trials_detail": results}
 
 
 class Evaluator:

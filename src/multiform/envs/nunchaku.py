@@ -206,6 +206,11 @@ class NunchakuEnv(gym.Env):
                 p[k] = float(self.np_random.uniform(lo, hi))
             else:
                 p[k] = NOMINAL[k]
+        bad = {k: v for k, v in p.items() if not math.isfinite(v)
+               or (k in ("rod_mass", "rod_length", "friction") and not v > 0) or (k == "chain_damping" and v < 0)}
+        if bad or not (math.isfinite(self._ft_noise) and self._ft_noise >= 0):
+            raise ValueError(f"reset options out of range: {bad or {'ft_noise': self._ft_noise}} (all finite; rod mass, "
+                             "rod length and friction above 0; chain damping and ft_noise at least 0)")
         self.params = p
         self._apply_params(p)
         m, d = self.model, self.data

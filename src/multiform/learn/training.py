@@ -12,6 +12,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -184,6 +186,10 @@ def demo_segments(apn: APN, episodes: Sequence[Episode], records: Sequence[Label
     return segs, np.asarray(y, dtype=bool)
 
 
+# a judge learns to tell success from failure only from at least this many labels of each verdict
+MIN_LABELS_PER_VERDICT = 3
+
+
 def fit_judge(apn: APN, episodes: Sequence[Episode], store: LabelStore, place: str, seed: int = 0,
               heldout: float = 0.25, mirror: bool = True) -> tuple[Judge, dict[str, Any]]:
     """Fit the judge of ``place`` on the store's effective mentor labels (and, if the skill declares a
@@ -198,6 +204,29 @@ def fit_judge(apn: APN, episodes: Sequence[Episode], store: LabelStore, place: s
                                "mirror_images": int(mirrored.sum())}
     if len(y) < 4:
         raise ValueError(f"judge of {place}: only {len(y)} labelled segments")
+    own = np.asarray(y[~mirrored], dtype=bool)
+    fewest = int(min(own.sum(), (~own).sum()))
+    summary["informative"] = fewest >= MIN_LABELS_PER_VERDICT
+    if not summary["informative"]:
+        kind = "failure" if (~own).sum() <= own.sum() else "success"
+        summary["uninformative"] = (f"only {fewest} {kind} label(s) among {len(own)} segments: the judge cannot "
+                                    f"tell success from failure here and grades every stay as "
+                                    f"{'successful' if kind == 'failure' else 'failed'}; the robot relies on "
+                                    f"the net's own outcome for this place")
+    with warnings.catch_warnings():     # expected with few labels (folds with one class): not the user's business
+        warnings.simplefilter("ignore", UserWarning)
+        _fit_judge_rows(place, variables, segs, y, mirrored, episodes, heldout, seed, summary)
+        judge = Judge(place=place, variables=variables, random_state=seed).fit(segs, y)
+    summary["kernel"] = judge.best_kernel_
+    best = judge.cv_scores_.get(judge.best_kernel_, {})
+    summary["cv_score"] = best.get("score") if isinstance(best, dict) else best
+    summary["cv_scores"] = {k: (v.get("score") if isinstance(v, dict) else v) for k, v in judge.cv_scores_.items()}
+    return judge, summary
+
+
+def _fit_judge_rows(place: str, variables: Sequence[str], segs: list, y: np.ndarray, mirrored: np.ndarray,
+                    episodes: Sequence[Episode], heldout: float, seed: int, summary: dict[str, Any]) -> None:
+    """The held-out accuracy of a judge fitted on the other demonstrations (into ``summary``)."""
     if heldout > 0 and len(episodes) >= 4:
         tr_d, te_d = split_episodes(len(episodes), heldout, seed)
         te_src = {demo_source(int(i)) for i in te_d}
@@ -209,12 +238,6 @@ def fit_judge(apn: APN, episodes: Sequence[Episode], store: LabelStore, place: s
             pred = probe.predict([s for s, t in zip(segs, test) if t])
             summary["heldout_accuracy"] = float(np.mean(pred == y[test]))
             summary["heldout_segments"] = int(test.sum())
-    judge = Judge(place=place, variables=variables, random_state=seed).fit(segs, y)
-    summary["kernel"] = judge.best_kernel_
-    best = judge.cv_scores_.get(judge.best_kernel_, {})
-    summary["cv_score"] = best.get("score") if isinstance(best, dict) else best
-    summary["cv_scores"] = {k: (v.get("score") if isinstance(v, dict) else v) for k, v in judge.cv_scores_.items()}
-    return judge, summary
 
 
 def region_variables(apn: APN) -> tuple[str, ...]:
