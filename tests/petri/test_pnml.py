@@ -67,3 +67,66 @@ def test_bad_pnml_is_refused(tmp_path):
     bad.write_text(to_pnml(load_skill("pendulum")).replace('"condition": "dwell &gt; 2.0"', '"condition": "dwell.x"'))
     with pytest.raises(InvalidInput, match="transitions.t2.condition"):
         read_pnml(bad)
+
+
+def _pendulum_pnml() -> str:
+    return to_pnml(load_skill("pendulum"))
+
+
+def _with_extra_place(text: str, xml: str) -> str:
+    return text.replace("<transition ", xml + "\n<transition ", 1)
+
+
+@pytest.mark.parametrize("mutate, fragment", [
+    (lambda t: _with_extra_place(t, '<place id="P0"><initialMarking><text>3</text></initialMarking></place>'),
+     "place P0: duplicate id: a second <place> with id 'P0'"),
+    (lambda t: t.replace("</page>", '<transition id="t2"/></page>'),
+     "transition t2: duplicate id: a second <transition> with id 't2'"),
+    (lambda t: t.replace("<text>1</text>\n        </initialMarking>", f"<text>{2**63}</text></initialMarking>", 1),
+     f"place P0: initial marking {2**63} is out of range"),
+    (lambda t: t.replace("<inscription>\n          <text>1</text>", "<inscription><text>" + "9" * 4000 + "</text>", 1),
+     "inscription a 4000-digit number is out of range"),
+    (lambda t: t.replace("<inscription>\n          <text>1</text>", "<inscription><text>-1</text>", 1),
+     "inscription '-1' is not a non-negative integer"),
+    (lambda t: t.replace('"law": "swing_up"', '"law": ' + "[" * 5000 + "]" * 5000, 1),
+     "transition t0: transition data nests 5001 levels deep, more than 32"),
+    (lambda t: t.replace('<property key="weight">1.0', '<property key="weight">1' + "0" * 4000, 1),
+     "lambda: must be finite"),
+])
+def test_hostile_pnml_refused_by_name(mutate, fragment):
+    text = mutate(_pendulum_pnml())
+    assert text != _pendulum_pnml()
+    with pytest.raises(InvalidInput) as info:
+        from_pnml(text, "x.pnml")
+    assert fragment in str(info.value)
+    assert len(str(info.value)) < 400
+
+
+def test_huge_counts_in_a_skill_file_refused(tmp_path):
+    from multiform.petri.skillfile import parse_skill
+    text = load_skill.__globals__["bundled_skills"]()["pendulum"].read_text()
+    with pytest.raises(InvalidInput, match=r"initial_marking.P0: token count 9223372036854775808 is out of range"):
+        parse_skill(text.replace("P0: 1", f"P0: {2**63}", 1))
+    with pytest.raises(InvalidInput, match="nested too deeply"):
+        parse_skill(text + "\ndeep: " + "[" * 5000 + "]" * 5000)
+    with pytest.raises(InvalidInput, match="Exceeds the limit"):
+        parse_skill(text.replace("P0: 1", "P0: " + "9" * 5000, 1))
+
+
+@pytest.mark.parametrize("encoding", ["iso-8859-1", "utf-16", "windows-1252"])
+def test_encoding_declaration_honoured(tmp_path, encoding):
+    apn = load_skill("pendulum")
+    text = to_pnml(apn).replace('encoding="UTF-8"', f'encoding="{encoding}"')
+    text = text.replace(">swung up<", ">swung up, café<")
+    path = tmp_path / "latin.pnml"
+    path.write_bytes(text.encode(encoding))
+    back = read_pnml(path)
+    assert back.place("P1").label == apn.place("P1").label
+    assert back.transitions == apn.transitions
+
+
+def test_unknown_encoding_refused(tmp_path):
+    path = tmp_path / "x.pnml"
+    path.write_bytes(_pendulum_pnml().replace('encoding="UTF-8"', 'encoding="no-such-codec"').encode())
+    with pytest.raises(InvalidInput, match="x.pnml: cannot decode the XML"):
+        read_pnml(path)

@@ -166,7 +166,7 @@ def _json(el: ET.Element | None, what: str, file: str, element: str) -> dict[str
     return out
 
 
-_COUNT = re.compile(r"^\+?[0-9]{1,30}$")
+_COUNT = re.compile(r"^\+?[0-9]+$")
 
 
 def _count(text: str, what: str, element: str, file: str, problems: list[Problem]) -> int | None:
@@ -175,12 +175,12 @@ def _count(text: str, what: str, element: str, file: str, problems: list[Problem
         shown = text if len(text) <= 40 else f"{text[:20]}...({len(text)} characters)"
         problems.append(Problem(file, element, f"{what} {shown!r} is not a non-negative integer"))
         return None
-    n = int(text)
-    if n > MAX_COUNT:
-        shown = str(n) if len(text) <= 40 else f"a {len(text.lstrip('+0'))}-digit number"
+    digits = text.lstrip("+").lstrip("0") or "0"
+    if len(digits) > len(str(MAX_COUNT)) or int(digits) > MAX_COUNT:
+        shown = digits if len(digits) <= 40 else f"a {len(digits)}-digit number"
         problems.append(Problem(file, element, f"{what} {shown} is out of range (at most {MAX_COUNT})"))
         return None
-    return n
+    return int(digits)
 
 
 def _valid_ids(nodes: list[tuple[str, str, str | None]]) -> dict[tuple[str, str], str]:
