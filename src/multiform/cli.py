@@ -56,14 +56,28 @@ def _net_version(args: argparse.Namespace, version: int | None):
     return hist.version(version)
 
 
+def _chosen_version(args: argparse.Namespace, what: str) -> int:
+    """The version ``--version`` names, else the history's latest; says which on stderr."""
+    from .petri.revision import History
+    from .petri.skillfile import resolve_skill
+    latest = len(History(resolve_skill(args.skill), args.history).revisions())
+    if args.version is None:
+        args.version = latest
+        if latest:
+            print(f"{what} version {latest}, the latest of the history (--version 0 for the original)",
+                  file=sys.stderr)
+    return args.version if args.version >= 0 else latest + 1 + args.version
+
+
 def cmd_draw(args: argparse.Namespace) -> int:
     from .petri.diagram import changed_elements, draw
-    apn = _net_version(args, args.version)
+    version = _chosen_version(args, "drawing")
+    apn = _net_version(args, version)
     changed: set[str] = set()
-    if args.version:
-        changed = changed_elements(_net_version(args, args.version - 1), apn)
+    if version:
+        changed = changed_elements(_net_version(args, version - 1), apn)
     out = Path(args.out or f"{apn.name}.svg")
-    draw(apn, out, changed=changed, title=f"{apn.name}" + (f" (version {args.version})" if args.version else ""))
+    draw(apn, out, changed=changed, title=f"{apn.name}" + (f" (version {version})" if version else ""))
     print(f"wrote {out}")
     return 0
 
@@ -88,10 +102,11 @@ def cmd_net_history(args: argparse.Namespace) -> int:
 
 def cmd_net_export(args: argparse.Namespace) -> int:
     from .petri.pnml import write_pnml
-    apn = _net_version(args, args.version)
+    version = _chosen_version(args, "exporting")
+    apn = _net_version(args, version)
     out = Path(args.out or f"{apn.name}.pnml")
     write_pnml(apn, out)
-    print(f"wrote {out}")
+    print(f"wrote {out} (version {version})")
     return 0
 
 
@@ -316,7 +331,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", "-o", help="output file (default <skill>.svg)")
     p.add_argument("--history", help="revision history (default <skill>.history.jsonl beside the skill)")
     p.add_argument("--version", "-v", type=int, dest="version", default=None,
-                   help="net version to draw (0 = original); changes of that version are highlighted")
+                   help="net version to draw (0 = original; default the latest); its changes are highlighted")
     p.set_defaults(func=cmd_draw)
 
     net = sub.add_parser("net", help="net versions: diff, history, PNML export/import")
@@ -336,7 +351,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("skill")
     p.add_argument("--out", "-o")
     p.add_argument("--history")
-    p.add_argument("--version", "-v", type=int, dest="version", default=None)
+    p.add_argument("--version", "-v", type=int, dest="version", default=None,
+                   help="net version to export (0 = original; default the latest)")
     p.set_defaults(func=cmd_net_export)
     p = nsub.add_parser("import", help="import a PNML net as a skill file")
     p.add_argument("pnml")

@@ -68,8 +68,10 @@ def bundled_skills() -> dict[str, Path]:
 
 
 def resolve_skill(name_or_path: str | os.PathLike) -> Path:
-    """A path as given, or a bundled skill by name."""
+    """A path as given (a model directory: its ``skill.yaml``), or a bundled skill by name."""
     p = Path(name_or_path)
+    if p.is_dir() and (p / "skill.yaml").is_file():
+        return p / "skill.yaml"
     if p.exists() or p.suffix in (".yaml", ".yml"):
         return p
     skills = bundled_skills()
