@@ -143,6 +143,32 @@ def cmd_record(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_demos_export(args: argparse.Namespace) -> int:
+    from .demos.dataset import read_dataset
+    from .demos.lerobot import write_lerobot
+    ds = read_dataset(args.demos)
+    out = write_lerobot(args.out, ds.episodes, ds.skill, ds.env_name, ds.env_kwargs, task=args.task or "")
+    print(f"wrote {out}: LeRobot v3 dataset, {len(ds)} episodes, "
+          f"{sum(ep.num_samples for ep in ds)} frames at {round(1 / ds.episodes[0].dt)} fps")
+    return 0
+
+
+def cmd_demos_import(args: argparse.Namespace) -> int:
+    from .demos.dataset import write_dataset
+    from .demos.lerobot import read_lerobot
+    split = lambda text: [n.strip() for n in text.split(",")] if text else None  # noqa: E731
+    eps, meta = read_lerobot(args.dataset, split(args.variables), split(args.commands), args.state_key,
+                             args.action_key, args.transition)
+    env = meta.get("env_args", {}) if isinstance(meta.get("env_args"), dict) else {}
+    skill = args.skill or str(meta.get("skill") or Path(args.dataset).name)
+    env_name = args.env or str(env.get("env_name") or "")
+    write_dataset(args.out, eps, skill, env_name, env.get("env_kwargs") or {}, mentor="lerobot import")
+    ok = sum(ep.outcome == "success" for ep in eps)
+    print(f"wrote {args.out}: {len(eps)} demos ({ok} successful), variables "
+          f"{', '.join(eps[0].observation_names)}; commands {', '.join(eps[0].command_names)}")
+    return 0
+
+
 def cmd_demos_info(args: argparse.Namespace) -> int:
     import json
 
@@ -367,12 +393,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.set_defaults(func=cmd_record)
 
-    demos = sub.add_parser("demos", help="inspect demonstration files")
+    demos = sub.add_parser("demos", help="inspect, export and import demonstration files")
     dsub = demos.add_subparsers(dest="demos_command", metavar="DEMOS_COMMAND", required=True)
     p = dsub.add_parser("info", help="count, durations, success fraction, samples per transition")
     p.add_argument("demos")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_demos_info)
+    p = dsub.add_parser("export", help="write demos in another format (LeRobot v3 dataset folder)")
+    p.add_argument("demos")
+    p.add_argument("--format", choices=["lerobot"], default="lerobot")
+    p.add_argument("--out", "-o", required=True, help="new folder")
+    p.add_argument("--task", help="LeRobot task text (default: the skill's name)")
+    p.set_defaults(func=cmd_demos_export)
+    p = dsub.add_parser("import", help="read a LeRobot v3 dataset folder as multiform demos (HDF5)")
+    p.add_argument("dataset", help="LeRobot dataset folder (meta/info.json, data/...)")
+    p.add_argument("--out", "-o", required=True, help="output .h5 file")
+    p.add_argument("--variables", help="names of the state vector's entries, comma-separated "
+                                       "(default: the feature's own names)")
+    p.add_argument("--commands", help="names of the action vector's entries, comma-separated")
+    p.add_argument("--state-key", default="observation.state")
+    p.add_argument("--action-key", default="action")
+    p.add_argument("--transition", default="t0", help="tag of every frame when there are no subtasks")
+    p.add_argument("--skill", help="skill name to record (default: the dataset's)")
+    p.add_argument("--env", help="env id to record (default: the dataset's)")
+    p.set_defaults(func=cmd_demos_import)
 
     p = sub.add_parser("teleop", help="demonstrate a task yourself (keyboard or joystick), label it, save it (HDF5)",
                        description="Drive the arm with the arrow keys or a joystick axis, mark the sub-procedure "
