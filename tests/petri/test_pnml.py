@@ -92,6 +92,10 @@ def _with_extra_place(text: str, xml: str) -> str:
      "transition t0: transition data nests 5001 levels deep, more than 32"),
     (lambda t: t.replace('<property key="weight">1.0', '<property key="weight">1' + "0" * 4000, 1),
      "lambda: must be finite"),
+    (lambda t: t.replace('"law": "swing_up"', '"law": ' + "9" * 5000, 1),
+     "transition t0: transition data is not JSON (Exceeds the limit"),
+    (lambda t: t.replace('"condition": "dwell &gt; 2.0"', '"condition": "dwell' + " + dwell" * 200 + '"', 1),
+     "transitions.t2.condition: expression nested 201 levels deep, more than 64"),
 ])
 def test_hostile_pnml_refused_by_name(mutate, fragment):
     text = mutate(_pendulum_pnml())

@@ -159,8 +159,8 @@ def _json(el: ET.Element | None, what: str, file: str, element: str) -> dict[str
                            file=file, element=element)
     try:
         out = json.loads(el.text)
-    except (json.JSONDecodeError, RecursionError) as exc:
-        raise InvalidInput(f"{what} data is not JSON ({exc})", file=file, element=element) from None
+    except (ValueError, RecursionError) as exc:        # ValueError: also a number of > 4,300 digits
+        raise InvalidInput(f"{what} data is not JSON ({str(exc)[:120]})", file=file, element=element) from None
     if not isinstance(out, dict):
         raise InvalidInput(f"{what} data must be a JSON object", file=file, element=element)
     return out
