@@ -178,3 +178,14 @@ def test_bad_version_2_tables_refused(demo_file, mutate, fragment):
         mutate(f)
     with pytest.raises(InvalidInput, match=fragment):
         read_dataset(path)
+
+
+def test_float32_observations_on_request(tmp_path):
+    ep = _episode(0, n=2000)
+    path = write_dataset(tmp_path / "d.h5", [ep], "pendulum", "x", obs_dtype="float32")
+    back = read_dataset(path).episodes[0]
+    assert back.obs.dtype == np.float64
+    np.testing.assert_array_equal(back.obs, ep.obs.astype(np.float32))
+    assert np.array_equal(back.actions, ep.actions)                  # commands stay exact
+    with pytest.raises(InvalidInput, match="obs_dtype must be float64 or float32"):
+        write_dataset(tmp_path / "e.h5", [ep], "pendulum", "x", obs_dtype="float16")

@@ -6,7 +6,7 @@ Layout (format version 2; robomimic's ``SequenceDataset`` and ``get_dataset_info
                                       observation_names (JSON), command_names (JSON), dt, total,
                                       action_scale (n_cmd,), transition_names (JSON: the tag codes' names)
     /data/demo_0               attrs: num_samples, seed, reset_options (JSON), outcome, mentor
-        obs/<name>             (T, 1) float64, one dataset per observation entry (identical
+        obs/<name>             (T, 1) float64 (or float32 if so written), one dataset per observation entry (identical
                                entries are one dataset under two names)
         next_obs/<name>        (T, 1) the observation after each sample (the last one repeated): a
                                virtual dataset over obs/<name>, so it takes no space
@@ -53,8 +53,14 @@ LABEL_DTYPE = np.dtype([("start", "<i8"), ("end", "<i8"), ("transition", "S64"),
 
 
 def write_dataset(path: str | os.PathLike, episodes: Sequence[Episode], skill: str, env_name: str,
-                  env_kwargs: dict[str, Any] | None = None, mentor: str = "") -> Path:
-    """Write ``episodes`` to ``path`` (temporary file + rename: readers never see half a file)."""
+                  env_kwargs: dict[str, Any] | None = None, mentor: str = "",
+                  obs_dtype: str = "float64") -> Path:
+    """Write ``episodes`` to ``path`` (temporary file + rename: readers never see half a file).
+
+    ``obs_dtype="float32"`` stores observations rounded to float32 (relative error 6e-8), about
+    half the size; the default keeps them exact."""
+    if obs_dtype not in ("float64", "float32"):
+        raise InvalidInput(f"obs_dtype must be float64 or float32, got {obs_dtype!r}", file=str(path))
     if not episodes:
         raise InvalidInput("no episodes to write", file=str(path))
     first = episodes[0]
@@ -90,7 +96,7 @@ def write_dataset(path: str | os.PathLike, episodes: Sequence[Episode], skill: s
                 g.attrs["reset_options"] = json.dumps(ep.reset_options, default=_jsonable)
                 g.attrs["outcome"] = ep.outcome
                 g.attrs["mentor"] = mentor
-                _write_obs(g, ep)
+                _write_obs(g, ep, np.dtype(obs_dtype))
                 _array(g, "actions", np.asarray(ep.actions, dtype=np.float64) / scale)
                 rewards = np.zeros(n, dtype=np.float64)
                 dones = np.zeros(n, dtype=np.uint8)
@@ -127,21 +133,21 @@ def _array(g: h5py.Group, name: str, arr: np.ndarray) -> h5py.Dataset:
     return g.create_dataset(name, data=arr, chunks=chunks, **COMPRESSION)
 
 
-def _write_obs(g: h5py.Group, ep: Episode) -> None:
+def _write_obs(g: h5py.Group, ep: Episode, dtype: np.dtype) -> None:
     """obs/<name> as (T, 1) columns, identical columns stored once (hard links), and next_obs/<name>
     as virtual datasets over them."""
     obs, nxt = g.create_group("obs"), g.create_group("next_obs")
     n = ep.num_samples
     stored: dict[bytes, str] = {}
     for k, key in enumerate(ep.observation_names):
-        col = np.ascontiguousarray(ep.obs[:, k], dtype=np.float64).reshape(n, 1)
+        col = np.ascontiguousarray(ep.obs[:, k], dtype=dtype).reshape(n, 1)
         digest = col.tobytes()
         if digest in stored:
             obs[key] = obs[stored[digest]]
         else:
             _array(obs, key, col)
             stored[digest] = key
-        layout = h5py.VirtualLayout(shape=(n, 1), dtype=np.float64)
+        layout = h5py.VirtualLayout(shape=(n, 1), dtype=dtype)
         if n:
             src = h5py.VirtualSource(".", obs[key].name, shape=(n, 1))
             layout[: n - 1] = src[1:]
@@ -307,7 +313,7 @@ def _read_demo(g: h5py.Group, name: str, obs_names: tuple[str, ...], cmd_names: 
             raise bad(f"obs/{key}", f"shape {ds.shape}, expected {shape} from num_samples")
         if ds.dtype.kind != "f":
             raise bad(f"obs/{key}", f"dtype {ds.dtype}, expected a float type")
-        col = ds[()].reshape(n)
+        col = ds[()].reshape(n).astype(np.float64)
         if not np.all(np.isfinite(col)):
             k = int(np.flatnonzero(~np.isfinite(col))[0])
             raise bad(f"obs/{key}", f"non-finite value at sample {k}")
