@@ -1,6 +1,8 @@
 import warnings
 
+from hypothesis import given, settings
 import pytest
+from hypothesis import strategies as st
 
 from multiform.errors import InvalidInput
 from multiform.petri.pnml import from_pnml, read_pnml, to_pnml, write_pnml
@@ -134,3 +136,50 @@ def test_unknown_encoding_refused(tmp_path):
     path.write_bytes(_pendulum_pnml().replace('encoding="UTF-8"', 'encoding="no-such-codec"').encode())
     with pytest.raises(InvalidInput, match="x.pnml: cannot decode the XML"):
         read_pnml(path)
+
+
+_ID = st.text(st.characters(blacklist_categories=("Cs", "Cc")), min_size=1, max_size=12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(_ID, min_size=2, max_size=6, unique=True), st.lists(_ID, min_size=1, max_size=5, unique=True),
+       st.randoms(use_true_random=False))
+def test_foreign_ids_become_valid_unique_ids_and_keep_the_structure(place_ids, transition_ids, rnd):
+    """Any ids another tool writes (spaces, brackets, UUIDs, an id shared by a place and a
+    transition) import as valid, unique ids; arcs, weights, marking and names are kept."""
+    import xml.etree.ElementTree as ET
+
+    from multiform.petri.skillfile import IDENT
+    root = ET.Element("pnml")
+    page = ET.SubElement(ET.SubElement(root, "net", {"id": "n"}), "page", {"id": "p"})
+    for i, pid in enumerate(place_ids):
+        el = ET.SubElement(page, "place", {"id": pid})
+        if i == 0:
+            ET.SubElement(ET.SubElement(el, "initialMarking"), "text").text = "1"
+    for tid in transition_ids:
+        ET.SubElement(page, "transition", {"id": tid})
+    arcs = []
+    for k, tid in enumerate(transition_ids):             # a chain from the first place to the last
+        src, dst = place_ids[min(k, len(place_ids) - 2)], place_ids[-1] if k == len(transition_ids) - 1 else \
+            place_ids[min(k + 1, len(place_ids) - 1)]
+        w = rnd.randint(1, 3)
+        arcs += [(src, tid, 1), (tid, dst, w)]
+    for k, (s, t, w) in enumerate(arcs):
+        arc = ET.SubElement(page, "arc", {"id": f"a{k}", "source": s, "target": t})
+        ET.SubElement(ET.SubElement(arc, "inscription"), "text").text = str(w)
+    fm = ET.SubElement(ET.SubElement(ET.SubElement(root[0], "finalmarkings"), "marking"), "place",
+                       {"idref": place_ids[-1]})
+    ET.SubElement(fm, "text").text = "1"
+    try:
+        apn = from_pnml(ET.tostring(root))
+    except InvalidInput as exc:            # a structurally unsound chain is refused, but never for its ids
+        assert "not a valid id" not in str(exc) and "duplicate id" not in str(exc)
+        return
+    ids = list(apn.place_ids) + list(apn.transition_ids)
+    assert all(IDENT.match(x) for x in ids) and len(set(ids)) == len(ids)
+    assert len(apn.places) == len(place_ids) and len(apn.transitions) == len(transition_ids)
+    assert sorted(w for t in apn.transitions for w in list(t.inputs.values()) + list(t.outputs.values())) == \
+        sorted(w for _, _, w in arcs)
+    names = {p.label or p.id for p in apn.places}
+    assert names == set(place_ids)
+    assert apn.final_places == {apn.places[-1].id: "success"} and apn.initial_marking == {apn.places[0].id: 1}
