@@ -8,3 +8,5 @@ The three forms of teaching live in three sub-packages:
 """
 
 __version__ = "0.1.0"
+
+from .envs import rendering as _rendering  # noqa: E402,F401  (MuJoCo's offscreen GL, chosen before mujoco loads)

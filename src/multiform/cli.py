@@ -107,14 +107,28 @@ def _net_version(args: argparse.Namespace, version: int | None):
     return hist.version(version)
 
 
+def _chosen_version(args: argparse.Namespace, what: str) -> int:
+    """The version ``--version`` names, else the history's latest; says which on stderr."""
+    from .petri.revision import History
+    from .petri.skillfile import resolve_skill
+    latest = len(History(resolve_skill(args.skill), args.history).revisions())
+    if args.version is None:
+        args.version = latest
+        if latest:
+            print(f"{what} version {latest}, the latest of the history (--version 0 for the original)",
+                  file=sys.stderr)
+    return args.version if args.version >= 0 else latest + 1 + args.version
+
+
 def cmd_draw(args: argparse.Namespace) -> int:
     from .petri.diagram import changed_elements, draw
-    apn = _net_version(args, args.version)
+    version = _chosen_version(args, "drawing")
+    apn = _net_version(args, version)
     changed: set[str] = set()
-    if args.version:
-        changed = changed_elements(_net_version(args, args.version - 1), apn)
+    if version:
+        changed = changed_elements(_net_version(args, version - 1), apn)
     out = Path(args.out) if args.out else _default_output(apn.name, ".svg")
-    draw(apn, out, changed=changed, title=f"{apn.name}" + (f" (version {args.version})" if args.version else ""))
+    draw(apn, out, changed=changed, title=f"{apn.name}" + (f" (version {version})" if version else ""))
     print(f"wrote {out}")
     return 0
 
@@ -139,10 +153,11 @@ def cmd_net_history(args: argparse.Namespace) -> int:
 
 def cmd_net_export(args: argparse.Namespace) -> int:
     from .petri.pnml import write_pnml
-    apn = _net_version(args, args.version)
+    version = _chosen_version(args, "exporting")
+    apn = _net_version(args, version)
     out = Path(args.out) if args.out else _default_output(apn.name, ".pnml")
     write_pnml(apn, out)
-    print(f"wrote {out}")
+    print(f"wrote {out} (version {version})")
     return 0
 
 
@@ -184,6 +199,32 @@ def cmd_record(args: argparse.Namespace) -> int:
         write_dataset(out, eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)
     ok = sum(e.outcome == "success" for e in eps)
     print(f"wrote {out}: {len(eps)} demos, the mentor succeeded in {ok} ({100 * ok / len(eps):.0f} %)")
+    return 0
+
+
+def cmd_demos_export(args: argparse.Namespace) -> int:
+    from .demos.dataset import read_dataset
+    from .demos.lerobot import write_lerobot
+    ds = read_dataset(args.demos)
+    out = write_lerobot(args.out, ds.episodes, ds.skill, ds.env_name, ds.env_kwargs, task=args.task or "")
+    print(f"wrote {out}: LeRobot v3 dataset, {len(ds)} episodes, "
+          f"{sum(ep.num_samples for ep in ds)} frames at {round(1 / ds.episodes[0].dt)} fps")
+    return 0
+
+
+def cmd_demos_import(args: argparse.Namespace) -> int:
+    from .demos.dataset import write_dataset
+    from .demos.lerobot import read_lerobot
+    split = lambda text: [n.strip() for n in text.split(",")] if text else None  # noqa: E731
+    eps, meta = read_lerobot(args.dataset, split(args.variables), split(args.commands), args.state_key,
+                             args.action_key, args.transition)
+    env = meta.get("env_args", {}) if isinstance(meta.get("env_args"), dict) else {}
+    skill = args.skill or str(meta.get("skill") or Path(args.dataset).name)
+    env_name = args.env or str(env.get("env_name") or "")
+    write_dataset(args.out, eps, skill, env_name, env.get("env_kwargs") or {}, mentor="lerobot import")
+    ok = sum(ep.outcome == "success" for ep in eps)
+    print(f"wrote {args.out}: {len(eps)} demos ({ok} successful), variables "
+          f"{', '.join(eps[0].observation_names)}; commands {', '.join(eps[0].command_names)}")
     return 0
 
 
@@ -432,7 +473,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", "-o", help="output file (default <skill>.svg)")
     p.add_argument("--history", help="revision history (default <skill>.history.jsonl beside the skill)")
     p.add_argument("--version", "-v", type=_count(-1_000_000, 1_000_000), dest="version", default=None,
-                   help="net version to draw (0 = original); changes of that version are highlighted")
+                   help="net version to draw (0 = original; default the latest); its changes are highlighted")
     p.set_defaults(func=cmd_draw)
 
     net = sub.add_parser("net", help="net versions: diff, history, PNML export/import")
@@ -452,7 +493,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("skill")
     p.add_argument("--out", "-o")
     p.add_argument("--history")
-    p.add_argument("--version", "-v", type=_count(-1_000_000, 1_000_000), dest="version", default=None)
+    p.add_argument("--version", "-v", type=_count(-1_000_000, 1_000_000), dest="version", default=None,
+                   help="net version to export (0 = original; default the latest)")
     p.set_defaults(func=cmd_net_export)
     p = nsub.add_parser("import", help="import a PNML net as a skill file")
     p.add_argument("pnml")
@@ -468,12 +510,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=_count(0, 40_000), default=0, help="demo i starts from seed 100000 * SEED + i")
     p.set_defaults(func=cmd_record)
 
-    demos = sub.add_parser("demos", help="inspect demonstration files")
+    demos = sub.add_parser("demos", help="inspect, export and import demonstration files")
     dsub = demos.add_subparsers(dest="demos_command", metavar="DEMOS_COMMAND", required=True, parser_class=_Parser)
     p = dsub.add_parser("info", help="count, durations, success fraction, samples per transition")
     p.add_argument("demos")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_demos_info)
+    p = dsub.add_parser("export", help="write demos in another format (LeRobot v3 dataset folder)")
+    p.add_argument("demos")
+    p.add_argument("--format", choices=["lerobot"], default="lerobot")
+    p.add_argument("--out", "-o", required=True, help="new folder")
+    p.add_argument("--task", help="LeRobot task text (default: the skill's name)")
+    p.set_defaults(func=cmd_demos_export)
+    p = dsub.add_parser("import", help="read a LeRobot v3 dataset folder as multiform demos (HDF5)")
+    p.add_argument("dataset", help="LeRobot dataset folder (meta/info.json, data/...)")
+    p.add_argument("--out", "-o", required=True, help="output .h5 file")
+    p.add_argument("--variables", help="names of the state vector's entries, comma-separated "
+                                       "(default: the feature's own names)")
+    p.add_argument("--commands", help="names of the action vector's entries, comma-separated")
+    p.add_argument("--state-key", default="observation.state")
+    p.add_argument("--action-key", default="action")
+    p.add_argument("--transition", default="t0", help="tag of every frame when there are no subtasks")
+    p.add_argument("--skill", help="skill name to record (default: the dataset's)")
+    p.add_argument("--env", help="env id to record (default: the dataset's)")
+    p.set_defaults(func=cmd_demos_import)
 
     p = sub.add_parser("teleop", help="demonstrate a task yourself (keyboard or joystick), label it, save it (HDF5)",
                        description="Drive the arm with the arrow keys or a joystick axis, mark the sub-procedure "

@@ -1,10 +1,11 @@
 import hashlib
+import json
 
 import h5py
 import numpy as np
 import pytest
 
-from multiform.demos.dataset import read_dataset, write_dataset
+from multiform.demos.dataset import labels_array, read_dataset, write_dataset
 from multiform.demos.episode import Episode, SegmentLabel
 from multiform.errors import InvalidInput
 
@@ -43,13 +44,21 @@ def test_round_trip(demo_file):
 
 
 def test_robomimic_layout(demo_file):
-    path, _ = demo_file
+    path, eps = demo_file
     with h5py.File(path) as f:
-        assert f["data"].attrs["format_version"] == 1
+        assert f["data"].attrs["format_version"] == 2
+        assert json.loads(f["data"].attrs["env_args"])["type"] == 2       # robomimic's EnvType.GYM_TYPE
         assert f["data/demo_0"].attrs["num_samples"] == 300
-        assert f["data/demo_0/obs/theta"].shape == (300,)
-        assert f["data/demo_0/actions"].shape == (300, 1)
+        assert f["data/demo_0/obs/theta"].shape == (300, 1)
+        assert f["data/demo_0/obs/theta"].compression == "gzip"
+        assert np.array_equal(f["data/demo_0/next_obs/theta"][:-1, 0], eps[0].column("theta")[1:])
+        assert f["data/demo_0/next_obs/theta"][-1, 0] == eps[0].column("theta")[-1]
+        actions = f["data/demo_0/actions"][()]
+        assert actions.shape == (300, 1) and np.abs(actions).max() <= 1.0
         assert f["data/demo_0/dones"][-1] == 1
+        assert list(f["data/demo_0/rewards"][-2:]) == [0.0, 1.0] and f["data/demo_1/rewards"][-1] == 0.0
+        names = json.loads(f["data"].attrs["transition_names"])
+        assert f["data/demo_0/transition"].dtype == np.uint8 and names == ["t0", "t1"]
         assert [x.decode() for x in f["mask/success"][()]] == ["demo_0", "demo_2"]
         assert [x.decode() for x in f["mask/failure"][()]] == ["demo_1"]
 
@@ -87,7 +96,7 @@ def test_wrong_version_names_group(demo_file):
     (lambda f: f["data/demo_2/obs"].__delitem__("xdot"), "data/demo_2/obs/xdot: missing dataset"),
     (lambda f: (f["data/demo_0"].__delitem__("actions"),
                 f["data/demo_0"].create_dataset("actions", data=np.zeros((300, 2)))), "data/demo_0/actions: shape (300, 2)"),
-    (lambda f: f["data/demo_0"].attrs.__setitem__("num_samples", 299), "data/demo_0/obs/theta: shape (300,), expected (299,)"),
+    (lambda f: f["data/demo_0"].attrs.__setitem__("num_samples", 299), "data/demo_0/obs/theta: shape (300, 1), expected (299, 1)"),
     (lambda f: (f["data/demo_1"].__delitem__("labels"),
                 f["data/demo_1"].create_dataset("labels", data=np.zeros(3))), "data/demo_1/labels: expected fields"),
 ])
@@ -111,3 +120,72 @@ def test_failed_write_leaves_old_file(demo_file):
         write_dataset(path, [eps[0], bad], "pendulum", "x")
     assert _digest(path) == before
     assert [p.name for p in path.parent.iterdir()] == ["demos.h5"]
+
+
+def _write_version_1(path, eps):
+    """A file as multiform wrote it before format 2: uncompressed, 1-D obs, tags as strings."""
+    with h5py.File(path, "w") as f:
+        data = f.create_group("data")
+        data.attrs.update(format_version=1, skill="pendulum", dt=1e-3,
+                          env_args=json.dumps({"env_name": "multiform/ArmPendulum-v0", "env_kwargs": {}}),
+                          observation_names=json.dumps(list(NAMES)), command_names='["v_cmd"]')
+        for i, ep in enumerate(eps):
+            g = data.create_group(f"demo_{i}")
+            g.attrs.update(num_samples=ep.num_samples, seed=ep.seed, outcome=ep.outcome, reset_options="{}")
+            for k, key in enumerate(NAMES):
+                g.create_dataset(f"obs/{key}", data=ep.obs[:, k])
+            g.create_dataset("actions", data=ep.actions)
+            g.create_dataset("dones", data=np.eye(1, ep.num_samples, ep.num_samples - 1, dtype=np.uint8)[0])
+            g.create_dataset("transition", data=ep.transitions.astype("S64"))
+            g.create_dataset("labels", data=labels_array(ep.labels))
+
+
+def test_version_1_files_still_read(tmp_path):
+    eps = [_episode(0), _episode(1, outcome="failure")]
+    _write_version_1(tmp_path / "old.h5", eps)
+    ds = read_dataset(tmp_path / "old.h5")
+    assert ds.meta["format_version"] == 1
+    for a, b in zip(eps, ds):
+        assert np.array_equal(a.obs, b.obs) and np.array_equal(a.actions, b.actions)
+        assert list(a.transitions) == list(b.transitions) and a.labels == b.labels
+
+
+def test_compact_storage_is_exact_and_small(tmp_path):
+    """Commands of any size come back bit for bit (the scale is a power of two); identical
+    observation columns are stored once; the tags cost a byte a sample."""
+    rng = np.random.default_rng(3)
+    ep = _episode(0, n=4000)
+    ep.actions = rng.normal(scale=37.3, size=(4000, 1))
+    ep.obs[:, 3] = ep.obs[:, 2]
+    path = write_dataset(tmp_path / "d.h5", [ep], "pendulum", "x")
+    back = read_dataset(path).episodes[0]
+    assert np.array_equal(back.actions, ep.actions) and np.array_equal(back.obs, ep.obs)
+    with h5py.File(path) as f:
+        scale, peak = f["data"].attrs["action_scale"][0], np.abs(ep.actions).max()
+        assert np.log2(scale) % 1 == 0 and peak <= scale < 2 * peak
+        assert f["data/demo_0/obs/x"].id == f["data/demo_0/obs/xdot"].id          # one dataset, two names
+        assert f["data/demo_0/transition"].id.get_storage_size() < 4000
+
+
+@pytest.mark.parametrize("mutate, fragment", [
+    (lambda f: f["data"].attrs.__setitem__("action_scale", [3.0]), "action_scale must be 1 positive powers of two"),
+    (lambda f: f["data"].attrs.__setitem__("transition_names", '["t0"]'), "code 1 has no name"),
+    (lambda f: f["data"].attrs.__delitem__("transition_names"), "missing attribute 'transition_names'"),
+])
+def test_bad_version_2_tables_refused(demo_file, mutate, fragment):
+    path, _ = demo_file
+    with h5py.File(path, "r+") as f:
+        mutate(f)
+    with pytest.raises(InvalidInput, match=fragment):
+        read_dataset(path)
+
+
+def test_float32_observations_on_request(tmp_path):
+    ep = _episode(0, n=2000)
+    path = write_dataset(tmp_path / "d.h5", [ep], "pendulum", "x", obs_dtype="float32")
+    back = read_dataset(path).episodes[0]
+    assert back.obs.dtype == np.float64
+    np.testing.assert_array_equal(back.obs, ep.obs.astype(np.float32))
+    assert np.array_equal(back.actions, ep.actions)                  # commands stay exact
+    with pytest.raises(InvalidInput, match="obs_dtype must be float64 or float32"):
+        write_dataset(tmp_path / "e.h5", [ep], "pendulum", "x", obs_dtype="float16")

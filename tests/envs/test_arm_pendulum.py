@@ -51,7 +51,7 @@ def test_registered_and_names():
     assert base.dt == 0.001
     obs, _ = env.reset(seed=1)
     assert obs.shape == (28,) and obs.dtype == np.float64
-    assert env.spec.max_episode_steps is None
+    assert env.spec.max_episode_steps == 60_000             # 60 s, the skills' default max_duration
     env.close()
 
 

@@ -57,3 +57,23 @@ def test_output_into_a_closed_pipe_ends_quietly():
         os.close(write)
     assert proc.returncode == 141, proc.stderr
     assert "Traceback" not in proc.stderr and "BrokenPipeError" not in proc.stderr
+
+
+def test_export_and_draw_use_the_latest_version_and_say_so(tmp_path, capsys):
+    from multiform.petri.pnml import read_pnml
+    model = tmp_path / "model"
+    model.mkdir()
+    shutil.copy(bundled_skills()["pendulum"], model / "skill.yaml")
+    hist = History(model / "skill.yaml")
+    apn, rev = add_transition(hist.latest(), "t7", {"in": ["P2"], "out": ["P1"], "law": "swing_up"}, "push")
+    hist.record(rev)
+    assert main(["net", "export", str(model), "-o", str(tmp_path / "latest.pnml")]) == 0
+    captured = capsys.readouterr()
+    assert "version 1, the latest of the history" in captured.err and "(version 1)" in captured.out
+    assert "t7" in read_pnml(tmp_path / "latest.pnml").transition_ids
+    assert main(["net", "export", str(model), "-v", "0", "-o", str(tmp_path / "v0.pnml")]) == 0
+    assert "t7" not in read_pnml(tmp_path / "v0.pnml").transition_ids
+    assert "latest" not in capsys.readouterr().err
+    assert main(["draw", str(model / "skill.yaml"), "-o", str(tmp_path / "latest.svg")]) == 0
+    assert "drawing version 1" in capsys.readouterr().err
+    assert "t7" in (tmp_path / "latest.svg").read_text()

@@ -105,3 +105,24 @@ def test_wrap_angle_range_and_equivalence(a):
 def test_to_text_round_trips(text):
     g = parse_guard(text)
     assert parse_guard(to_text(g.tree)).tree == g.tree
+
+
+@pytest.mark.parametrize("text, fragment", [
+    ("x < " + "1" * 400, "number out of range at column 5"),
+    ("x < 1e999", "number out of range"),
+    ("-" * 100_000 + "x", "condition of 100001 characters, more than 2000"),
+    ("x" + " + x" * 400, "expression nested 401 levels deep, more than 64"),
+    ("(" * 250 + "x" + ")" * 250 + " < 1", "malformed expression (too many nested parentheses)"),
+    ("not " * 300 + "x", "nested 301 levels deep"),
+    ("abs(" * 70 + "x" + ")" * 70, "nested 71 levels deep"),
+])
+def test_long_deep_or_huge_refused(text, fragment):
+    with pytest.raises(GuardError) as info:
+        parse_guard(text)
+    assert fragment in str(info.value)
+    assert len(str(info.value)) < 300
+
+
+def test_deepest_allowed_guard_compiles_and_runs():
+    g = parse_guard("x" + " + x" * 60 + " > 0")
+    assert g.evaluate({"x": 1.0}) is True

@@ -1,16 +1,28 @@
-"""The demonstration dataset: HDF5 through h5py in the robomimic layout, written atomically.
+"""The demonstration dataset: HDF5 through h5py in robomimic's layout, written atomically.
 
-Layout (format version 1)::
+Layout (format version 2; robomimic's ``SequenceDataset`` and ``get_dataset_info.py`` read it)::
 
-    /data                      attrs: format_version, skill, env_args (JSON: env_name, env_kwargs),
-                                      observation_names (JSON), command_names (JSON), dt, total
+    /data                      attrs: format_version, skill, env_args (JSON: env_name, type, env_kwargs),
+                                      observation_names (JSON), command_names (JSON), dt, total,
+                                      action_scale (n_cmd,), transition_names (JSON: the tag codes' names)
     /data/demo_0               attrs: num_samples, seed, reset_options (JSON), outcome, mentor
-        obs/<name>             (T,) float64, one dataset per observation entry
-        actions                (T, n_cmd) float64, the mentor's end-effector command
+        obs/<name>             (T, 1) float64 (or float32 if so written), one dataset per observation entry (identical
+                               entries are one dataset under two names)
+        next_obs/<name>        (T, 1) the observation after each sample (the last one repeated): a
+                               virtual dataset over obs/<name>, so it takes no space
+        actions                (T, n_cmd) float64, the mentor's end-effector command divided by
+                               action_scale (a power of two per command: in [-1, 1], exactly undone)
+        rewards                (T,) float64, 1 on the last sample of a successful demo, else 0
         dones                  (T,) uint8, 1 on the last sample
-        transition             (T,) bytes, the transition the mentor was executing
+        transition             (T,) uint8/uint16 codes into transition_names: the transition the
+                               mentor was executing
         labels                 (k,) compound: start, end, transition, success, labeller
     /mask/success, /mask/failure   demo names (bytes), robomimic's filter keys
+
+Every sample array is chunked and compressed (gzip with byte shuffle), so any HDF5 tool reads it.
+``env_args.type`` is 2, robomimic's ``EnvType.GYM_TYPE``: the env is a Gymnasium env made by
+``gymnasium.make(env_name, **env_kwargs)``. There are no simulator ``states``: a demo is replayed
+from its seed and reset options. Version 1 files (uncompressed, tags as strings) are still read.
 
 Reading validates the version, every demo's fields, their shapes, dtypes and finite values, and
 names the demo and field at fault.
@@ -31,14 +43,24 @@ from ..errors import InvalidInput, Problem
 from ..io import atomic_path
 from .episode import Episode, SegmentLabel
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+READABLE_VERSIONS = (1, 2)
+ENV_TYPE_GYM = 2                 # robomimic's EnvType.GYM_TYPE
+COMPRESSION = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
+CHUNK = 16384                    # samples per chunk
 LABEL_DTYPE = np.dtype([("start", "<i8"), ("end", "<i8"), ("transition", "S64"), ("success", "u1"),
                         ("labeller", "S64")])
 
 
 def write_dataset(path: str | os.PathLike, episodes: Sequence[Episode], skill: str, env_name: str,
-                  env_kwargs: dict[str, Any] | None = None, mentor: str = "") -> Path:
-    """Write ``episodes`` to ``path`` (temporary file + rename: readers never see half a file)."""
+                  env_kwargs: dict[str, Any] | None = None, mentor: str = "",
+                  obs_dtype: str = "float64") -> Path:
+    """Write ``episodes`` to ``path`` (temporary file + rename: readers never see half a file).
+
+    ``obs_dtype="float32"`` stores observations rounded to float32 (relative error 6e-8), about
+    half the size; the default keeps them exact."""
+    if obs_dtype not in ("float64", "float32"):
+        raise InvalidInput(f"obs_dtype must be float64 or float32, got {obs_dtype!r}", file=str(path))
     if not episodes:
         raise InvalidInput("no episodes to write", file=str(path))
     first = episodes[0]
@@ -46,41 +68,91 @@ def write_dataset(path: str | os.PathLike, episodes: Sequence[Episode], skill: s
         if ep.observation_names != first.observation_names or ep.command_names != first.command_names:
             raise InvalidInput("episodes disagree on observation or command names", file=str(path),
                                element=f"demo_{i}")
+    tag_names = sorted({str(t) for ep in episodes for t in np.unique(ep.transitions)})
+    code = {t: k for k, t in enumerate(tag_names)}
+    code_dtype = np.uint8 if len(tag_names) <= 256 else np.uint16
+    scale = action_scale(np.concatenate([np.asarray(ep.actions, dtype=np.float64) for ep in episodes]))
     path = Path(path)
     with atomic_path(path, suffix=".h5") as tmp:
         with h5py.File(tmp, "w") as f:
             data = f.create_group("data")
             data.attrs["format_version"] = FORMAT_VERSION
             data.attrs["skill"] = skill
-            data.attrs["env_args"] = json.dumps({"env_name": env_name, "env_kwargs": env_kwargs or {}})
+            data.attrs["env_args"] = json.dumps({"env_name": env_name, "type": ENV_TYPE_GYM,
+                                                 "env_kwargs": env_kwargs or {}})
             data.attrs["observation_names"] = json.dumps(list(first.observation_names))
             data.attrs["command_names"] = json.dumps(list(first.command_names))
             data.attrs["dt"] = float(first.dt)
             data.attrs["total"] = int(sum(ep.num_samples for ep in episodes))
+            data.attrs["action_scale"] = scale
+            data.attrs["transition_names"] = json.dumps(tag_names)
             names = {"success": [], "failure": []}
             for i, ep in enumerate(episodes):
                 name = f"demo_{i}"
                 g = data.create_group(name)
-                g.attrs["num_samples"] = ep.num_samples
+                n = ep.num_samples
+                g.attrs["num_samples"] = n
                 g.attrs["seed"] = int(ep.seed)
                 g.attrs["reset_options"] = json.dumps(ep.reset_options, default=_jsonable)
                 g.attrs["outcome"] = ep.outcome
                 g.attrs["mentor"] = mentor
-                obs = g.create_group("obs")
-                for k, key in enumerate(ep.observation_names):
-                    obs.create_dataset(key, data=np.ascontiguousarray(ep.obs[:, k], dtype=np.float64))
-                g.create_dataset("actions", data=np.asarray(ep.actions, dtype=np.float64))
-                dones = np.zeros(ep.num_samples, dtype=np.uint8)
-                if ep.num_samples:
+                _write_obs(g, ep, np.dtype(obs_dtype))
+                _array(g, "actions", np.asarray(ep.actions, dtype=np.float64) / scale)
+                rewards = np.zeros(n, dtype=np.float64)
+                dones = np.zeros(n, dtype=np.uint8)
+                if n:
                     dones[-1] = 1
-                g.create_dataset("dones", data=dones)
-                g.create_dataset("transition", data=np.asarray(ep.transitions).astype("S64"))
+                    rewards[-1] = float(ep.outcome == "success")
+                _array(g, "rewards", rewards)
+                _array(g, "dones", dones)
+                tags = np.asarray(ep.transitions)
+                codes = np.zeros(n, dtype=code_dtype)
+                for t in np.unique(tags):
+                    codes[tags == t] = code[str(t)]
+                _array(g, "transition", codes)
                 g.create_dataset("labels", data=labels_array(ep.labels))
                 names["success" if ep.outcome == "success" else "failure"].append(name)
             mask = f.create_group("mask")
             for key, vals in names.items():
                 mask.create_dataset(key, data=np.asarray(vals, dtype="S32"))
     return path
+
+
+def action_scale(actions: np.ndarray) -> np.ndarray:
+    """Per command, the smallest power of two at least its largest magnitude (1 for all zeros):
+    dividing by it puts the commands in [-1, 1] as robomimic expects, and is exactly undone."""
+    peak = np.max(np.abs(actions), axis=0) if len(actions) else np.zeros(actions.shape[1:])
+    exp = np.ceil(np.log2(np.where(peak > 0, peak, 1.0)))
+    return np.ldexp(1.0, exp.astype(int))
+
+
+def _array(g: h5py.Group, name: str, arr: np.ndarray) -> h5py.Dataset:
+    if len(arr) == 0:
+        return g.create_dataset(name, data=arr)
+    chunks = (min(len(arr), CHUNK),) + arr.shape[1:]
+    return g.create_dataset(name, data=arr, chunks=chunks, **COMPRESSION)
+
+
+def _write_obs(g: h5py.Group, ep: Episode, dtype: np.dtype) -> None:
+    """obs/<name> as (T, 1) columns, identical columns stored once (hard links), and next_obs/<name>
+    as virtual datasets over them."""
+    obs, nxt = g.create_group("obs"), g.create_group("next_obs")
+    n = ep.num_samples
+    stored: dict[bytes, str] = {}
+    for k, key in enumerate(ep.observation_names):
+        col = np.ascontiguousarray(ep.obs[:, k], dtype=dtype).reshape(n, 1)
+        digest = col.tobytes()
+        if digest in stored:
+            obs[key] = obs[stored[digest]]
+        else:
+            _array(obs, key, col)
+            stored[digest] = key
+        layout = h5py.VirtualLayout(shape=(n, 1), dtype=dtype)
+        if n:
+            src = h5py.VirtualSource(".", obs[key].name, shape=(n, 1))
+            layout[: n - 1] = src[1:]
+            layout[n - 1:] = src[n - 1:]
+        nxt.create_virtual_dataset(key, layout)
 
 
 def labels_array(labels: Iterable[SegmentLabel]) -> np.ndarray:
@@ -161,9 +233,10 @@ def _read(path: Path) -> tuple[list[Episode], dict[str, Any]]:
         version = data.attrs.get("format_version")
         if version is None:
             raise InvalidInput("missing attribute 'format_version'", file=file, element="data")
-        if int(version) != FORMAT_VERSION:
-            raise InvalidInput(f"format version {int(version)}, this multiform reads version {FORMAT_VERSION}",
-                               file=file, element="data")
+        if int(version) not in READABLE_VERSIONS:
+            raise InvalidInput(f"format version {int(version)}, this multiform reads versions "
+                               f"{', '.join(map(str, READABLE_VERSIONS))}", file=file, element="data")
+        version = int(version)
         meta: dict[str, Any] = {}
         for key in ("skill", "env_args", "observation_names", "command_names", "dt"):
             if key not in data.attrs:
@@ -178,13 +251,16 @@ def _read(path: Path) -> tuple[list[Episode], dict[str, Any]]:
         dt = float(data.attrs["dt"])
         if not np.isfinite(dt) or dt <= 0:
             raise InvalidInput(f"dt must be a positive number, got {dt}", file=file, element="data")
-        meta.update(observation_names=obs_names, command_names=cmd_names, dt=dt)
+        meta.update(observation_names=obs_names, command_names=cmd_names, dt=dt, format_version=version)
+        scale, tag_names = np.ones(len(cmd_names)), None
+        if version >= 2:
+            scale, tag_names = _v2_attrs(data, len(cmd_names), file)
         names = sorted((k for k in data if k.startswith("demo_")), key=lambda k: int(k.split("_")[1]))
         episodes = []
         problems: list[Problem] = []
         for name in names:
             try:
-                episodes.append(_read_demo(data[name], name, obs_names, cmd_names, dt, file))
+                episodes.append(_read_demo(data[name], name, obs_names, cmd_names, dt, file, scale, tag_names))
             except InvalidInput as exc:
                 problems.extend(exc.problems)
             except (OSError, KeyError, ValueError, TypeError) as exc:   # truncated chunks and the like
@@ -194,12 +270,31 @@ def _read(path: Path) -> tuple[list[Episode], dict[str, Any]]:
         return episodes, meta
 
 
+def _v2_attrs(data: h5py.Group, n_cmd: int, file: str) -> tuple[np.ndarray, list[str]]:
+    """Format 2's action scale and transition name table, checked."""
+    for key in ("action_scale", "transition_names"):
+        if key not in data.attrs:
+            raise InvalidInput(f"missing attribute {key!r}", file=file, element="data")
+    scale = np.asarray(data.attrs["action_scale"], dtype=np.float64).reshape(-1)
+    mant, _ = np.frexp(scale)
+    if scale.shape != (n_cmd,) or not np.all(np.isfinite(scale)) or np.any(scale <= 0) or np.any(mant != 0.5):
+        raise InvalidInput(f"action_scale must be {n_cmd} positive powers of two, got {scale.tolist()[:8]}",
+                           file=file, element="data")
+    try:
+        names = json.loads(_str(data.attrs["transition_names"]))
+    except (json.JSONDecodeError, TypeError, RecursionError) as exc:
+        raise InvalidInput(f"transition_names is not valid JSON ({exc})", file=file, element="data") from None
+    if not isinstance(names, list) or not all(isinstance(t, str) for t in names):
+        raise InvalidInput("transition_names must be a JSON list of names", file=file, element="data")
+    return scale, names
+
+
 def _str(v: Any) -> str:
     return v.decode() if isinstance(v, bytes) else str(v)
 
 
 def _read_demo(g: h5py.Group, name: str, obs_names: tuple[str, ...], cmd_names: tuple[str, ...], dt: float,
-               file: str) -> Episode:
+               file: str, scale: np.ndarray, tag_names: list[str] | None) -> Episode:
     def bad(field: str, msg: str) -> InvalidInput:
         return InvalidInput(msg, file=file, element=f"data/{name}/{field}")
 
@@ -213,11 +308,12 @@ def _read_demo(g: h5py.Group, name: str, obs_names: tuple[str, ...], cmd_names: 
         if key not in g["obs"]:
             raise bad(f"obs/{key}", "missing dataset")
         ds = g["obs"][key]
-        if ds.shape != (n,):
-            raise bad(f"obs/{key}", f"shape {ds.shape}, expected ({n},) from num_samples")
+        shape = (n,) if tag_names is None else (n, 1)
+        if ds.shape != shape:
+            raise bad(f"obs/{key}", f"shape {ds.shape}, expected {shape} from num_samples")
         if ds.dtype.kind != "f":
             raise bad(f"obs/{key}", f"dtype {ds.dtype}, expected a float type")
-        col = ds[()]
+        col = ds[()].reshape(n).astype(np.float64)
         if not np.all(np.isfinite(col)):
             k = int(np.flatnonzero(~np.isfinite(col))[0])
             raise bad(f"obs/{key}", f"non-finite value at sample {k}")
@@ -232,8 +328,16 @@ def _read_demo(g: h5py.Group, name: str, obs_names: tuple[str, ...], cmd_names: 
     if actions.dtype.kind != "f" or not np.all(np.isfinite(actions)):
         raise bad("actions", "must hold finite floats")
     tags = g["transition"][()]
-    if tags.shape != (n,) or tags.dtype.kind != "S":
-        raise bad("transition", f"shape {tags.shape} dtype {tags.dtype}, expected ({n},) bytes")
+    if tag_names is None:
+        if tags.shape != (n,) or tags.dtype.kind != "S":
+            raise bad("transition", f"shape {tags.shape} dtype {tags.dtype}, expected ({n},) bytes")
+        tags = tags.astype(str)
+    else:
+        if tags.shape != (n,) or tags.dtype.kind != "u":
+            raise bad("transition", f"shape {tags.shape} dtype {tags.dtype}, expected ({n},) unsigned codes")
+        if n and int(tags.max()) >= len(tag_names):
+            raise bad("transition", f"code {int(tags.max())} has no name ({len(tag_names)} transition_names)")
+        tags = np.asarray(tag_names, dtype=str)[tags] if tag_names else np.zeros(0, dtype=str)
     labels_raw = g["labels"][()]
     if labels_raw.dtype.names is None or not set(LABEL_DTYPE.names) <= set(labels_raw.dtype.names):
         raise bad("labels", f"expected fields {', '.join(LABEL_DTYPE.names)}")
@@ -248,7 +352,7 @@ def _read_demo(g: h5py.Group, name: str, obs_names: tuple[str, ...], cmd_names: 
         reset_options = json.loads(_str(g.attrs.get("reset_options", "{}")))
     except json.JSONDecodeError as exc:
         raise bad("reset_options", f"not valid JSON ({exc})") from None
-    return Episode(obs=obs, actions=actions.astype(np.float64), transitions=tags.astype(str),
+    return Episode(obs=obs, actions=actions.astype(np.float64) * scale, transitions=tags,
                    observation_names=obs_names, command_names=cmd_names, dt=dt,
                    seed=int(g.attrs.get("seed", 0)), reset_options=reset_options, labels=labels,
                    outcome=_str(g.attrs.get("outcome", "")))

@@ -7,13 +7,23 @@
 Every env here exposes ``observation_names`` (one name per observation entry) and
 ``command_names`` (one name per entry of the end-effector command), so that a skill file can name
 its state variables and the library never needs to know which env it drives.
+
+Importing this package also picks MuJoCo's offscreen renderer (:mod:`multiform.envs.rendering`).
+Both envs step 1 ms of physics per call, so ``render_fps`` is 1000 (a video of every frame plays in
+real time), and are registered with a time limit (``max_episode_steps``) that a ``gymnasium.make``
+argument overrides.
 """
 
 from gymnasium.envs.registration import register, registry
 
+from .rendering import BACKEND as GL_BACKEND  # noqa: F401  (sets MUJOCO_GL before mujoco is imported)
+
+ARM_PENDULUM_STEPS = 60_000      # 60 s, a skill's default max_duration
+NUNCHAKU_STEPS = 15_000          # 15 s, the env's own default max_duration
+
 if "multiform/ArmPendulum-v0" not in registry:
     register(id="multiform/ArmPendulum-v0",
-             entry_point="multiform.envs.arm_pendulum:ArmPendulumEnv")
+             entry_point="multiform.envs.arm_pendulum:ArmPendulumEnv", max_episode_steps=ARM_PENDULUM_STEPS)
 if "multiform/Nunchaku-v0" not in registry:
     register(id="multiform/Nunchaku-v0",
-             entry_point="multiform.envs.nunchaku:NunchakuEnv")
+             entry_point="multiform.envs.nunchaku:NunchakuEnv", max_episode_steps=NUNCHAKU_STEPS)

@@ -52,8 +52,17 @@ them either).
 Termination: a non-finite or exploding simulation ends the episode with ``terminated=True`` and
 ``info["diverged"] = True``; the flange leaving the workspace far beyond the servo's soft wall
 (|x| > 0.6 m, y or z more than 0.25 m from the centre, or tilted more than 1 rad) ends it with
-``info["out_of_workspace"] = True``. There is no time limit (wrap with ``TimeLimit``); the reward is
-0, the skill's judges grade trials. ``info["disturbance"]`` is the torque applied in the last step.
+``info["out_of_workspace"] = True``. ``gymnasium.make`` adds a 60 s time limit (60,000 steps;
+``max_episode_steps=`` changes it). ``info["disturbance"]`` is the torque applied in the last step.
+
+Reward and success (for Gymnasium tooling; multiform's own runs grade trials with the skill's judges
+and never read them): the reward is ``dt`` (0.001) for every step that ends with the pendulum
+upright (|theta| < 0.5 rad), else 0, so an episode's return is its time upright in seconds;
+``info["is_success"]`` is True once it has stayed upright for 5 s without a break, the check the
+pendulum task's evaluation applies.
+
+``normalize_actions=True`` gives the action space [-1, 1] per entry, scaled to the limits above
+(±1.5 m/s, or the torque limits); the default keeps the physical units.
 """
 
 from __future__ import annotations
@@ -68,6 +77,7 @@ import mujoco
 import numpy as np
 
 from .osc import DEFAULT_GAINS, OBSERVATION_NAMES, TORQUE_LIMITS, Gains, Workspace, task_acceleration_list, torques_for
+from .rendering import make_renderer
 
 COMMAND_NAMES = ("v_cmd",)
 NOMINAL = {"length": 0.4, "mass": 0.1, "damping": 2e-4}
@@ -78,6 +88,8 @@ ROD_OFFSET = -0.016         # the rod lies this far from the hinge along the pen
 TERMINATE_X = 0.6
 TERMINATE_YZ = 0.25
 TERMINATE_TILT = 1.0
+SUCCESS_ANGLE = 0.5         # rad: "upright" for the reward and is_success
+SUCCESS_HOLD = 5.0          # s upright without a break: is_success
 _OBJ_SITE = int(mujoco.mjtObj.mjOBJ_SITE)
 _OPTIONS = ("length", "mass", "damping", "randomize", "theta0", "omega0", "x0", "disturbances")
 
@@ -124,12 +136,13 @@ class ArmPendulumEnv(gym.Env):
     they are over half a frame's cost: 37 against 16 ms at 480×360).
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 1000}       # one frame per 1 ms step
     observation_names = OBSERVATION_NAMES
     command_names = COMMAND_NAMES
 
     def __init__(self, render_mode: str | None = None, action_mode: str = "ee", gains: Gains | None = None,
-                 width: int = 480, height: int = 360, camera: str = "front", shadows: bool = True):
+                 width: int = 480, height: int = 360, camera: str = "front", shadows: bool = True,
+                 normalize_actions: bool = False):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None")
         if action_mode not in ("ee", "torque"):
@@ -152,6 +165,12 @@ class ArmPendulumEnv(gym.Env):
             self.action_space = gym.spaces.Box(-v, v, (1,), dtype=np.float64)
         else:
             self.action_space = gym.spaces.Box(-self.torque_limits, self.torque_limits, dtype=np.float64)
+        self._action_unit: np.ndarray | None = None
+        if normalize_actions:
+            self._action_unit = self.action_space.high.copy()
+            self.action_space = gym.spaces.Box(-1.0, 1.0, self._action_unit.shape, dtype=np.float64)
+        self._hold_steps = int(math.ceil(SUCCESS_HOLD / self.dt - 1e-9))
+        self._upright = 0
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (len(OBSERVATION_NAMES),), dtype=np.float64)
         key = m.key("home").id
         self.home_qpos = m.key_qpos[key].copy()
@@ -222,8 +241,9 @@ class ArmPendulumEnv(gym.Env):
         d.qvel[self._hinge_v] = omega0
         mujoco.mj_forward(m, d)
         self._applied = 0.0
+        self._upright = 0
         obs = self._observe()
-        return obs, {"diverged": False, "out_of_workspace": False, "disturbance": 0.0}
+        return obs, {"diverged": False, "out_of_workspace": False, "disturbance": 0.0, "is_success": False}
 
     def _arm_posture(self, x0: float) -> np.ndarray:
         """Joint positions that put the flange ``x0`` along the swing axis from the workspace centre
@@ -289,6 +309,8 @@ class ArmPendulumEnv(gym.Env):
     # ------------------------------------------------------------------- step
     def step(self, action):
         m, d = self.model, self.data
+        if self._action_unit is not None:
+            action = self._action_unit * np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
         if self.action_mode == "ee":
             a6 = task_acceleration_list(self._obs_list, float(action[0]), self.gains)
             tau = torques_for(a6, m, d, self.torque_limits, self._work)
@@ -313,12 +335,17 @@ class ArmPendulumEnv(gym.Env):
         non_finite = bool(s - s)                  # NaN or ±inf somewhere
         if non_finite or abs(o[1]) > 1e3:
             obs = np.zeros(len(OBSERVATION_NAMES))
+            self._upright = 0
             return obs, 0.0, True, False, {"diverged": True, "non_finite": non_finite, "out_of_workspace": False,
-                                           "disturbance": self._applied}
+                                           "disturbance": self._applied, "is_success": False}
         c = self.workspace_centre
         out = (abs(o[2]) > TERMINATE_X or abs(o[5] - c[1]) > TERMINATE_YZ or abs(o[6] - c[2]) > TERMINATE_YZ
                or o[10] * o[10] + o[11] * o[11] + o[12] * o[12] > TERMINATE_TILT ** 2)
-        return obs, 0.0, out, False, {"diverged": False, "out_of_workspace": out, "disturbance": self._applied}
+        upright = abs(o[0]) < SUCCESS_ANGLE
+        self._upright = self._upright + 1 if upright else 0
+        return obs, self.dt if upright else 0.0, out, False, {
+            "diverged": False, "out_of_workspace": out, "disturbance": self._applied,
+            "is_success": self._upright >= self._hold_steps}
 
     @property
     def last_torques(self) -> np.ndarray:
@@ -355,7 +382,7 @@ class ArmPendulumEnv(gym.Env):
         if self.render_mode != "rgb_array":
             return None
         if self._renderer is None:
-            self._renderer = mujoco.Renderer(self.model, self.height, self.width)
+            self._renderer = make_renderer(self.model, self.height, self.width)
             self._renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self.shadows
         self._renderer.update_scene(self.data, camera=self.camera)
         return self._renderer.render().copy()

@@ -71,8 +71,17 @@ and rod B, rad, +-0.15), ``grip_offset`` (rod A's position along the palm, m, +-
 Termination: a non-finite or exploding simulation ends the episode with ``terminated=True`` and
 ``info["diverged"] = True`` (never an exception); a nunchaku that falls away from the hand (no rod
 held and both rods more than 0.6 m below the hand) ends it with ``info["dropped"] = True``.
-Episodes are truncated after ``max_duration`` seconds. The reward is 0: the skill's judges, not a
-reward, grade the trials.
+Episodes are truncated after ``max_duration`` seconds (``gymnasium.make`` also registers 15,000
+steps as ``max_episode_steps``; pass a larger one with a longer ``max_duration``).
+
+Reward and success (for Gymnasium tooling; multiform's own runs grade trials with the skill's judges
+and never read them): ``info["is_success"]`` is True once the flip is done, the check the nunchaku
+task's evaluation applies: the first rod was let go, the chain then pressed on the back of the hand
+(touch > 0.5 N), and the other rod (B) has been held in the palm for 0.5 s. The reward is 1 on the
+step the flip becomes done, else 0.
+
+``normalize_actions=True`` gives the action space [-1, 1] per entry, mapped linearly onto the limits
+above (magnet on for a positive last entry); the default keeps the physical units.
 """
 
 from __future__ import annotations
@@ -86,6 +95,7 @@ import mujoco
 import numpy as np
 
 from .load_estimator import LoadEstimator
+from .rendering import make_renderer
 
 OBSERVATION_NAMES = ("hand_x", "hand_z", "hand_q", "hand_vx", "hand_vz", "hand_wq", "ft_fx", "ft_fz",
                      "ft_ty", "grip", "touch", "prox", "phi", "omega", "load")
@@ -99,6 +109,9 @@ KP_ROT, KV_ROT = 100.0, 2.0          # wrist servo gains, N m/rad and N m s/rad
 HOME = (0.0, 1.0)                  # workspace centre (world x, z) [m]
 WORKSPACE = 0.5                    # |hand_x|, |hand_z| limit of the reference [m]
 PROX_RANGE = 0.1
+FLIP_TOUCH = 0.5                   # N on the back of the hand: the chain rolled over it
+FLIP_HOLD = 0.5                    # s the caught rod must stay in the palm
+_TOUCH = OBSERVATION_NAMES.index("touch")
 _BAD = tuple(int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
                                 mujoco.mjtWarning.mjWARN_BADQACC))
 
@@ -129,12 +142,13 @@ class NunchakuEnv(gym.Env):
     shadows (much cheaper on a CPU renderer). ``dt`` is 0.001 s (one control step = one physics step).
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 1000}       # one frame per 1 ms step
     observation_names = OBSERVATION_NAMES
     command_names = COMMAND_NAMES
 
     def __init__(self, render_mode: str | None = None, max_duration: float = 15.0, capture: float = 0.03,
-                 settle: float = 0.25, width: int = 480, height: int = 360, shadows: bool = True):
+                 settle: float = 0.25, width: int = 480, height: int = 360, shadows: bool = True,
+                 normalize_actions: bool = False):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None")
         self.render_mode = render_mode
@@ -152,6 +166,11 @@ class NunchakuEnv(gym.Env):
         self.action_space = gym.spaces.Box(np.array([-3.0, -3.0, -20.0, 0.0]), np.array([3.0, 3.0, 20.0, 1.0]),
                                            dtype=np.float64)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (len(OBSERVATION_NAMES),), dtype=np.float64)
+        self._action_box: tuple[np.ndarray, np.ndarray] | None = None
+        if normalize_actions:
+            self._action_box = (self.action_space.low.copy(), self.action_space.high.copy())
+            self.action_space = gym.spaces.Box(-1.0, 1.0, (len(COMMAND_NAMES),), dtype=np.float64)
+        self._flip = {"released": False, "touched": False, "held_b": 0, "done": False}
         self._hand = m.body("hand").id
         self._rods = (m.body("rod_a").id, m.body("rod_b").id)
         self._links = tuple(m.body(f"link{i}").id for i in range(1, 7))
@@ -251,7 +270,7 @@ class NunchakuEnv(gym.Env):
         load = 0.0
         hold = np.array([0.0, 0.0, 0.0, 1.0])
         for _ in range(n_settle):
-            obs, _, terminated, _, _ = self.step(hold)
+            obs, _, terminated, _, _ = self._step(hold)
             if terminated:
                 break
             load += obs[7] * math.cos(obs[2]) + obs[6] * math.sin(obs[2])
@@ -259,6 +278,7 @@ class NunchakuEnv(gym.Env):
             hand_weight = self.model.body_mass[self._hand] * 9.81
             self.estimator.weigh(load / n_settle - hand_weight)
         self._steps = 0
+        self._flip = {"released": False, "touched": False, "held_b": 0, "done": False}
         return obs, self._info(False)
 
     def _apply_params(self, p: dict[str, float]) -> None:
@@ -287,6 +307,26 @@ class NunchakuEnv(gym.Env):
 
     # ------------------------------------------------------------------- step
     def step(self, action):
+        if self._action_box is not None:
+            lo, hi = self._action_box
+            action = lo + (np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0) + 1.0) * 0.5 * (hi - lo)
+        obs, _, terminated, truncated, info = self._step(action)
+        done_before = self._flip["done"]
+        if not info["diverged"]:
+            self._track_flip(obs)
+        info["is_success"] = self._flip["done"]
+        return obs, float(self._flip["done"] and not done_before), terminated, truncated, info
+
+    def _track_flip(self, obs: np.ndarray) -> None:
+        f = self._flip
+        if self._held < 0:
+            f["released"] = True
+            f["touched"] = f["touched"] or obs[_TOUCH] > FLIP_TOUCH
+        f["held_b"] = f["held_b"] + 1 if self._held == 1 else 0
+        if f["released"] and f["touched"] and f["held_b"] * self.dt >= FLIP_HOLD - 1e-9:
+            f["done"] = True
+
+    def _step(self, action):
         m, d = self.model, self.data
         dt = self.dt
         vx = min(max(float(action[0]), -3.0), 3.0)
@@ -316,7 +356,7 @@ class NunchakuEnv(gym.Env):
         if diverged:
             obs = np.zeros(len(OBSERVATION_NAMES))
             info = {"diverged": True, "non_finite": not np.isfinite(d.qvel).all(), "dropped": False,
-                    "scene": {}, "truth": {}}
+                    "scene": {}, "truth": {}, "is_success": False}
             return obs, 0.0, True, False, info
         qvel = d.qvel
         v = (qvel[self._vx], qvel[self._vz], qvel[self._vq])
@@ -463,14 +503,15 @@ class NunchakuEnv(gym.Env):
                  "rod_b": (xp[rb, 0], xp[rb, 2], ang_b), "held": held, "back_touch": float(d.sensordata[self._sens["back_touch"]]),
                  "free_angle": _wrap(free_ang - q), "free_rate": w_free, "hand_z_world": xp[h, 2]}
         truth = {"phi": scene["free_angle"], "omega": w_free}
-        return {"diverged": False, "dropped": dropped, "scene": scene, "truth": truth}
+        return {"diverged": False, "dropped": dropped, "scene": scene, "truth": truth,
+                "is_success": self._flip["done"]}
 
     # ----------------------------------------------------------------- render
     def render(self):
         if self.render_mode != "rgb_array":
             return None
         if self._renderer is None:
-            self._renderer = mujoco.Renderer(self.model, self.height, self.width)
+            self._renderer = make_renderer(self.model, self.height, self.width)
             self._renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self.shadows
             cam = mujoco.MjvCamera()
             cam.type = mujoco.mjtCamera.mjCAMERA_FREE

@@ -48,6 +48,8 @@ FUNCTIONS: dict[str, tuple[int, int | None, Callable[..., float]]] = {
     "wrap_angle": (1, 1, wrap_angle),
 }
 CONSTANTS = {"true": True, "false": False, "pi": math.pi}
+MAX_CHARS = 2000        # the bundled skills' longest condition has under 100
+MAX_DEPTH = 64          # nesting of the expression tree (the closures it compiles to nest as deep)
 
 _BINOPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
            ast.Div: operator.truediv, ast.Pow: operator.pow, ast.Mod: operator.mod}
@@ -70,7 +72,8 @@ class GuardError(ValueError):
         self.message = message
         self.col = col
         where = f" at column {col}" if col is not None else ""
-        super().__init__(f"{message}{where} in {text!r}")
+        shown = repr(text) if len(text) <= 120 else f"{text[:60]!r}... ({len(text)} characters)"
+        super().__init__(f"{message}{where} in {shown}")
 
 
 # The intermediate form: small tuples, so that analysis (variables used) and compilation share one
@@ -118,13 +121,30 @@ def parse_guard(text: str, allowed: set[str] | frozenset[str] | None = None) -> 
     src = text.strip()
     if not src:
         raise GuardError(text, "empty condition")
+    if len(src) > MAX_CHARS:
+        raise GuardError(src, f"condition of {len(src)} characters, more than {MAX_CHARS}")
     try:
         node = ast.parse(src, mode="eval").body
     except SyntaxError as exc:
         raise GuardError(text, f"malformed expression ({exc.msg})", exc.offset or len(src) + 1) from None
+    except (RecursionError, MemoryError):
+        raise GuardError(src, f"expression nested more than {MAX_DEPTH} levels deep") from None
+    depth = _depth(node)
+    if depth > MAX_DEPTH:
+        raise GuardError(src, f"expression nested {depth} levels deep, more than {MAX_DEPTH}")
     used: set[str] = set()
     tree = _check(node, src, used, allowed)
     return Guard(text=src, variables=frozenset(used), tree=_fold(tree))
+
+
+def _depth(node: ast.AST) -> int:
+    """Nesting depth of an expression tree, found without recursion."""
+    deepest, stack = 0, [(node, 1)]
+    while stack:
+        n, d = stack.pop()
+        deepest = max(deepest, d)
+        stack.extend((c, d + 1) for c in ast.iter_child_nodes(n) if isinstance(c, ast.expr))
+    return deepest
 
 
 def _col(node: ast.AST) -> int:
@@ -134,6 +154,7 @@ def _col(node: ast.AST) -> int:
 def _check(node: ast.AST, src: str, used: set[str], allowed) -> tuple:
     def fail(n: ast.AST, what: str) -> GuardError:
         seg = ast.get_source_segment(src, n) or ""
+        seg = seg if len(seg) <= 60 else seg[:40] + "..."
         return GuardError(src, f"{what} not allowed: {seg!r}" if seg else f"{what} not allowed", _col(n))
 
     rec = lambda n: _check(n, src, used, allowed)  # noqa: E731
@@ -142,7 +163,13 @@ def _check(node: ast.AST, src: str, used: set[str], allowed) -> tuple:
         if isinstance(v, bool):
             return ("const", v)
         if isinstance(v, (int, float)) and not isinstance(v, complex):
-            return ("const", float(v))
+            try:
+                f = float(v)
+            except OverflowError:
+                f = math.inf
+            if not math.isfinite(f):
+                raise GuardError(src, "number out of range", _col(node))
+            return ("const", f)
         raise fail(node, f"constant of type {type(v).__name__}")
     if isinstance(node, ast.Name):
         name = node.id

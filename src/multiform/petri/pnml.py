@@ -2,15 +2,25 @@
 
 The file is a plain P/T net (``ptnet``) on one page. λ goes into the
 ``<toolspecific tool="StochasticPetriNet" version="0.2">`` block as ``<property key="weight">``
-(the convention pm4py and ProM read); conditions, law names, final places, judges and the skill's
-variables/laws travel in a ``<toolspecific tool="multiform">`` block of our own, which other tools
-ignore. Reading is lenient about the namespace and a missing ``<page>``.
+(the convention pm4py and ProM read); the success places are the net's ``<finalmarkings>`` (one
+``<marking>`` per success place; pm4py reads them as its final marking); conditions, law names,
+final places, judges and the skill's variables/laws travel in a ``<toolspecific tool="multiform">``
+block of our own, which other tools ignore.
+
+Reading is lenient about the namespace and a missing ``<page>``, honours the XML encoding
+declaration, and takes nets other tools wrote (pm4py's constructors and miners): a *foreign* net
+(one without our net-level block) gets valid ids made from its names or ids (``({'a'}, {'b'})`` →
+``a_b``, a UUID transition labelled ``a`` → ``a``), the original names kept as labels; a place and a
+transition may share an id there (arcs tell which is meant); its final places are those of its
+final markings, or, with none given, its sink places. Duplicate ids of one kind, counts out of
+range and data nested too deeply are refused by name.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
@@ -18,12 +28,14 @@ from typing import Any
 from ..errors import InvalidInput, Problem
 from ..io import write_text
 from .net import APN
-from .skillfile import build_apn, skill_to_data
+from .skillfile import IDENT, MAX_COUNT, build_apn, skill_to_data
 
 NS = "http://www.pnml.org/version-2009/grammar/pnml"
 PTNET = "http://www.pnml.org/version-2009/grammar/ptnet"
 TOOL = "multiform"
 TOOL_VERSION = "1"
+MAX_JSON_CHARS = 1_000_000       # one toolspecific block; the bundled skills need < 10 kB
+MAX_JSON_DEPTH = 32              # skill data nests 5 levels deep
 
 
 def _text_child(parent: ET.Element, tag: str, text: str) -> ET.Element:
@@ -64,6 +76,10 @@ def to_pnml(apn: APN) -> str:
             arc = ET.SubElement(page, "arc", {"id": f"a{k}", "source": src, "target": dst})
             _text_child(arc, "inscription", str(w))
             k += 1
+    finals = ET.SubElement(net, "finalmarkings")
+    for pid, kind in apn.final_places.items():
+        if kind == "success":
+            _text_child(ET.SubElement(finals, "marking"), "place", "1").set("idref", pid)
     skill = skill_to_data(apn)
     for key in ("places", "transitions", "initial_marking"):
         skill.pop(key)
@@ -82,7 +98,9 @@ def _local(tag: str) -> str:
     return tag.rsplit("}", 1)[-1]
 
 
-def _find(el: ET.Element, name: str) -> ET.Element | None:
+def _find(el: ET.Element | None, name: str) -> ET.Element | None:
+    if el is None:
+        return None
     for c in el:
         if _local(c.tag) == name:
             return c
@@ -107,24 +125,102 @@ def _tool(el: ET.Element, tool: str) -> ET.Element | None:
     return None
 
 
+def _json_depth(text: str) -> int:
+    """How deeply ``[`` and ``{`` nest in JSON text (outside strings), without parsing it."""
+    depth = deepest = 0
+    in_str = escaped = False
+    for ch in text:
+        if in_str:
+            if escaped:
+                escaped = False
+            elif ch == "\\":
+                escaped = True
+            elif ch == '"':
+                in_str = False
+        elif ch == '"':
+            in_str = True
+        elif ch in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif ch in "]}":
+            depth -= 1
+    return deepest
+
+
 def _json(el: ET.Element | None, what: str, file: str, element: str) -> dict[str, Any]:
     if el is None or not (el.text or "").strip():
         return {}
+    if len(el.text) > MAX_JSON_CHARS:
+        raise InvalidInput(f"{what} data is {len(el.text)} characters, more than {MAX_JSON_CHARS}",
+                           file=file, element=element)
+    depth = _json_depth(el.text)
+    if depth > MAX_JSON_DEPTH:
+        raise InvalidInput(f"{what} data nests {depth} levels deep, more than {MAX_JSON_DEPTH}",
+                           file=file, element=element)
     try:
         out = json.loads(el.text)
-    except json.JSONDecodeError as exc:
-        raise InvalidInput(f"{what} data is not JSON ({exc})", file=file, element=element) from None
+    except (ValueError, RecursionError) as exc:        # ValueError: also a number of > 4,300 digits
+        raise InvalidInput(f"{what} data is not JSON ({str(exc)[:120]})", file=file, element=element) from None
     if not isinstance(out, dict):
         raise InvalidInput(f"{what} data must be a JSON object", file=file, element=element)
     return out
 
 
-def from_pnml(text: str, file: str = "<string>") -> APN:
-    """Read a PNML P/T net; our toolspecific data restores conditions, laws and final places."""
+_COUNT = re.compile(r"^\+?[0-9]+$")
+
+
+def _count(text: str, what: str, element: str, file: str, problems: list[Problem]) -> int | None:
+    """A token count or arc weight: a whole number from 0 to MAX_COUNT, else a problem and None."""
+    if not _COUNT.match(text):
+        shown = text if len(text) <= 40 else f"{text[:20]}...({len(text)} characters)"
+        problems.append(Problem(file, element, f"{what} {shown!r} is not a non-negative integer"))
+        return None
+    digits = text.lstrip("+").lstrip("0") or "0"
+    if len(digits) > len(str(MAX_COUNT)) or int(digits) > MAX_COUNT:
+        shown = digits if len(digits) <= 40 else f"a {len(digits)}-digit number"
+        problems.append(Problem(file, element, f"{what} {shown} is out of range (at most {MAX_COUNT})"))
+        return None
+    return int(digits)
+
+
+def _valid_ids(nodes: list[tuple[str, str, str | None]]) -> dict[tuple[str, str], str]:
+    """(kind, original id) -> a valid id unique over places and transitions: the original where it
+    is one, else one made from the element's name (or id), e.g. ``({'a'}, {'b'})`` -> ``a_b``."""
+    out: dict[tuple[str, str], str] = {}
+    used: set[str] = set()
+    for kind, oid, _ in nodes:
+        if IDENT.match(oid) and not oid.startswith("__") and oid not in used:
+            out[(kind, oid)] = oid
+            used.add(oid)
+    for kind, oid, name in nodes:
+        if (kind, oid) in out:
+            continue
+        base = re.sub(r"[^A-Za-z0-9_]+", "_", name or oid).strip("_")[:40]
+        if not base or base[0].isdigit() or base.startswith("__"):
+            base = f"{kind[0]}_{base}".rstrip("_")
+        new, k = base, 2
+        while new in used:
+            new, k = f"{base}_{k}", k + 1
+        out[(kind, oid)] = new
+        used.add(new)
+    return out
+
+
+def _parse_xml(text: str | bytes, file: str) -> ET.Element:
     try:
-        root = ET.fromstring(text)
+        return ET.fromstring(text)
     except ET.ParseError as exc:
         raise InvalidInput(f"not well-formed XML ({exc})", file=file) from None
+    except (LookupError, UnicodeError, ValueError) as exc:   # an encoding Python does not know
+        raise InvalidInput(f"cannot decode the XML ({exc})", file=file) from None
+
+
+def from_pnml(text: str | bytes, file: str = "<string>") -> APN:
+    """Read a PNML P/T net; our toolspecific data restores conditions, laws and final places.
+
+    Bytes are decoded as the XML declaration says (default UTF-8).
+    """
+    root = _parse_xml(text, file)
     net = root if _local(root.tag) == "net" else _find(root, "net")
     if net is None:
         raise InvalidInput("no <net> element", file=file)
@@ -135,72 +231,106 @@ def from_pnml(text: str, file: str = "<string>") -> APN:
         nodes.extend(c)
         nodes.extend(x for sub in _findall(c, "page") for x in sub)  # nested pages, flattened
     name = _text_of(_find(net, "name")) or net.get("id") or Path(file).stem
-    skill = _json(_find(_tool(net, TOOL), "skill") if _tool(net, TOOL) is not None else None, "skill", file, "net")
+    ours = _tool(net, TOOL)
+    skill = _json(_find(ours, "skill"), "skill", file, "net")
     data: dict[str, Any] = {"skill": name, **skill}
+    problems: list[Problem] = []
+
+    elements: dict[tuple[str, str], ET.Element] = {}
+    order: list[tuple[str, str, str | None]] = []
+    for el in nodes:
+        kind = _local(el.tag)
+        if kind not in ("place", "transition"):
+            continue
+        oid = el.get("id")
+        if not oid:
+            problems.append(Problem(file, kind, "element without an id"))
+        elif (kind, oid) in elements:
+            problems.append(Problem(file, f"{kind} {oid}", f"duplicate id: a second <{kind}> with id {oid!r}"))
+        else:
+            elements[(kind, oid)] = el
+            order.append((kind, oid, _text_of(_find(el, "name"))))
+    ids = _valid_ids(order) if ours is None else {(k, o): o for k, o, _ in order}
+    final_ids = _final_marking(net, {o for k, o in elements if k == "place"}, file, problems)
+
     places: dict[str, Any] = {}
     marking: dict[str, int] = {}
     transitions: dict[str, Any] = {}
-    problems: list[Problem] = []
-    for el in nodes:
-        kind = _local(el.tag)
-        pid = el.get("id")
-        if kind in ("place", "transition") and not pid:
-            problems.append(Problem(file, kind, "element without an id"))
-            continue
+    for (kind, oid), el in elements.items():
+        pid = ids[(kind, oid)]
+        label = _text_of(_find(el, "name"))
+        if not label and pid != oid:
+            label = oid
+        label = label if label != pid else ""
+        where = f"{kind} {oid}"
         if kind == "place":
-            label = _text_of(_find(el, "name"))
-            extra = _json(_find(_tool(el, TOOL), "place") if _tool(el, TOOL) is not None else None,
-                          "place", file, f"place {pid}")
-            spec = {"label": extra.get("label", label if label != pid else "") or ""}
+            extra = _json(_find(_tool(el, TOOL), "place"), "place", file, where)
+            spec: dict[str, Any] = {"label": extra.get("label", label) or ""}
             if extra.get("final"):
                 spec["final"] = extra["final"]
+            elif "final" not in extra and oid in final_ids:
+                spec["final"] = "success"
             if extra.get("judge"):
                 spec["judge"] = extra["judge"]
             places[pid] = spec
             m = _text_of(_find(el, "initialMarking"))
             if m:
-                try:
-                    marking[pid] = int(m)
-                except ValueError:
-                    problems.append(Problem(file, f"place {pid}", f"initial marking {m!r} is not an integer"))
-        elif kind == "transition":
-            label = _text_of(_find(el, "name"))
-            extra = _json(_find(_tool(el, TOOL), "transition") if _tool(el, TOOL) is not None else None,
-                          "transition", file, f"transition {pid}")
-            spec: dict[str, Any] = {"in": {}, "out": {}, "label": extra.get("label", label if label != pid else "") or ""}
+                n = _count(m, "initial marking", where, file, problems)
+                if n:
+                    marking[pid] = n
+        else:
+            extra = _json(_find(_tool(el, TOOL), "transition"), "transition", file, where)
+            spec = {"in": {}, "out": {}, "label": extra.get("label", label) or ""}
             sto = _tool(el, "StochasticPetriNet")
             if sto is not None:
                 for prop in _findall(sto, "property"):
                     if prop.get("key") == "weight":
+                        w = (prop.text or "").strip()
                         try:
-                            spec["lambda"] = float((prop.text or "").strip())
+                            spec["lambda"] = float(w)
                         except ValueError:
-                            spec["lambda"] = (prop.text or "").strip()
+                            spec["lambda"] = w if len(w) <= 40 else f"{w[:20]}...({len(w)} characters)"
             if extra.get("law"):
                 spec["law"] = extra["law"]
             if "condition" in extra:
                 spec["condition"] = extra["condition"]
             transitions[pid] = spec
+
     for el in nodes:
         if _local(el.tag) != "arc":
             continue
         src, dst = el.get("source"), el.get("target")
+        where = f"arc {el.get('id')}"
         w_text = _text_of(_find(el, "inscription"))
-        try:
-            w = int(w_text) if w_text else 1
-        except ValueError:
-            problems.append(Problem(file, f"arc {el.get('id')}", f"inscription {w_text!r} is not an integer"))
+        w = _count(w_text, "inscription", where, file, problems) if w_text else 1
+        if w is None:
             continue
-        if src in places and dst in transitions:
-            transitions[dst]["in"][src] = w
-        elif src in transitions and dst in places:
-            transitions[src]["out"][dst] = w
-        elif src in places and dst in places:
-            problems.append(Problem(file, f"arc {el.get('id')}", f"arc {src} -> {dst} connects two places"))
-        elif src in transitions and dst in transitions:
-            problems.append(Problem(file, f"arc {el.get('id')}", f"arc {src} -> {dst} connects two transitions"))
+        if w == 0:
+            problems.append(Problem(file, where, "inscription 0: an arc weight is at least 1"))
+            continue
+        if ("place", src) in elements and ("transition", dst) in elements:
+            arcs = transitions[ids[("transition", dst)]]["in"]
+            p = ids[("place", src)]
+        elif ("transition", src) in elements and ("place", dst) in elements:
+            arcs = transitions[ids[("transition", src)]]["out"]
+            p = ids[("place", dst)]
         else:
-            problems.append(Problem(file, f"arc {el.get('id')}", f"unknown source or target ({src} -> {dst})"))
+            kinds = ["place" if ("place", x) in elements else "transition" if ("transition", x) in elements
+                     else None for x in (src, dst)]
+            if None in kinds:
+                problems.append(Problem(file, where, f"unknown source or target ({src} -> {dst})"))
+            else:
+                problems.append(Problem(file, where, f"arc {src} -> {dst} connects two {kinds[0]}s"))
+            continue
+        if p in arcs:
+            problems.append(Problem(file, where, f"duplicate arc {src} -> {dst}"))
+        else:
+            arcs[p] = w
+    if ours is None and not final_ids and not any(s.get("final") for s in places.values()):
+        feeding = {p for t in transitions.values() for p in t["in"]}
+        for pid, spec in places.items():
+            if pid not in feeding and pid not in marking:
+                spec["final"] = "success"
     data["places"] = places
     data["transitions"] = transitions
     data["initial_marking"] = marking
@@ -210,11 +340,28 @@ def from_pnml(text: str, file: str = "<string>") -> APN:
     return apn
 
 
+def _final_marking(net: ET.Element, place_ids: set[str], file: str, problems: list[Problem]) -> set[str]:
+    """The places holding tokens in the net's ``<finalmarkings>`` (every ``<marking>`` in it)."""
+    out: set[str] = set()
+    for fm in _findall(net, "finalmarkings"):
+        for marking in _findall(fm, "marking"):
+            for pl in _findall(marking, "place"):
+                ref = pl.get("idref")
+                where = f"finalmarkings place {ref}"
+                if ref not in place_ids:
+                    problems.append(Problem(file, where, "no place with this id"))
+                    continue
+                n = _count(_text_of(pl) or "1", "token count", where, file, problems)
+                if n:
+                    out.add(ref)
+    return out
+
+
 def read_pnml(path: str | os.PathLike) -> APN:
-    """Read a PNML file."""
+    """Read a PNML file (its encoding as the XML declaration says)."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
+        data = path.read_bytes()
+    except OSError as exc:
         raise InvalidInput(f"cannot read ({exc})", file=str(path)) from None
-    return from_pnml(text, str(path))
+    return from_pnml(data, str(path))

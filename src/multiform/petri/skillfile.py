@@ -29,6 +29,7 @@ PLACE_KEYS = {"label", "final", "judge"}
 TRANSITION_KEYS = {"label", "in", "out", "law", "lambda", "condition"}
 LAW_KEYS = {"inputs", "outputs", "mean", "lag", "description", "fit"}
 MAX_LAG = 1.0                    # s: a reaction time, not a plan
+MAX_COUNT = 2**31 - 1            # tokens in a place, weight of an arc (int32, as other PNML tools hold them)
 LAW_MEANS = ("constant", "linear")
 
 
@@ -67,8 +68,10 @@ def bundled_skills() -> dict[str, Path]:
 
 
 def resolve_skill(name_or_path: str | os.PathLike) -> Path:
-    """A path as given, or a bundled skill by name."""
+    """A path as given (a model directory: its ``skill.yaml``), or a bundled skill by name."""
     p = Path(name_or_path)
+    if p.is_dir() and (p / "skill.yaml").is_file():
+        return p / "skill.yaml"
     if p.exists() or p.suffix in (".yaml", ".yml"):
         return p
     skills = bundled_skills()
@@ -101,7 +104,9 @@ def parse_skill(text: str, file: str = "<string>") -> APN:
         where = f"line {mark.line + 1}" if mark is not None else ""
         raise InvalidInput(f"not valid YAML ({getattr(exc, 'problem', exc)})", file=file, element=where) from None
     except RecursionError:
-        raise InvalidInput("nested too deeply to read", file=file) from None
+        raise InvalidInput("not a skill file: lists or mappings nested too deeply", file=file) from None
+    except ValueError as exc:       # a number with more digits than Python converts
+        raise InvalidInput(f"not a skill file: {exc}", file=file) from None
     finally:
         loader.dispose()
     problems = [Problem(file, f"line {line}", f"duplicate id {key!r}") for key, line in loader.duplicates]
@@ -190,7 +195,9 @@ def build_apn(data: Mapping[str, Any], file: str, problems: list[Problem]) -> AP
             if p not in place_ids:
                 bad(el, f"unknown place {p!r}")
             elif not _is_int(n) or n < 0:
-                bad(el, f"token count must be a non-negative integer, got {n!r}")
+                bad(el, f"token count must be a non-negative integer, got {_shown(n)}")
+            elif n > MAX_COUNT:
+                bad(el, f"token count {_shown(n)} is out of range (at most {MAX_COUNT})")
             elif n > 0:
                 initial[str(p)] = int(n)
         if not initial and isinstance(marking_raw, Mapping) and marking_raw:
@@ -297,6 +304,14 @@ def _positive(value: Any, el: str, bad) -> float:
         bad(el, f"must be a positive number, got {value!r}")
         return 1.0
     return float(value)
+
+
+def _shown(v: Any) -> str:
+    """A value for a message: huge numbers by their digit count, not their 4,000 digits."""
+    if _is_int(v) and abs(v).bit_length() > 128:
+        return f"a number of about {int(abs(v).bit_length() * 0.30103) + 1} digits"
+    text = repr(v)
+    return text if len(text) <= 60 else f"{text[:40]}...({len(text)} characters)"
 
 
 def _is_int(v: Any) -> bool:
@@ -443,7 +458,9 @@ def _arcs(raw: Any, el: str, place_ids: set[str], transition_ids: set[str], tid:
         elif p not in place_ids:
             bad(el, f"unknown place {p!r}")
         elif not _is_int(w) or w < 1:
-            bad(el, f"arc weight for {p!r} must be a positive integer, got {w!r}")
+            bad(el, f"arc weight for {p!r} must be a positive integer, got {_shown(w)}")
+        elif w > MAX_COUNT:
+            bad(el, f"arc weight for {p!r} is {_shown(w)}, out of range (at most {MAX_COUNT})")
         elif p in out:
             bad(el, f"duplicate arc to place {p!r}")
         else:
@@ -537,8 +554,8 @@ def _extra_arcs(raw: Any, transitions: list[Transition], place_ids: set[str], ba
             bad(el, "an arc is {from: <id>, to: <id>, weight: <n>}")
             continue
         src, dst, w = arc["from"], arc["to"], arc.get("weight", 1)
-        if not _is_int(w) or w < 1:
-            bad(el, f"weight must be a positive integer, got {w!r}")
+        if not _is_int(w) or w < 1 or w > MAX_COUNT:
+            bad(el, f"weight must be a positive integer up to {MAX_COUNT}, got {_shown(w)}")
             continue
         kinds = ["place" if x in place_ids else "transition" if x in by_id else None for x in (src, dst)]
         if None in kinds:

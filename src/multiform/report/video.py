@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 
 from ..demos.episode import Episode
+from ..envs.rendering import make_renderer
 from ..io import atomic_path
 
 
@@ -76,7 +77,7 @@ def render_qpos(env: gym.Env, qpos: Iterable[np.ndarray], camera: str | None = N
     m, d = base.model, base.data
     saved = (d.qpos.copy(), d.qvel.copy(), d.act.copy(), float(d.time))
     own = camera is not None or getattr(base, "render_mode", None) != "rgb_array"
-    renderer = mujoco.Renderer(m, height, width) if own else None
+    renderer = make_renderer(m, height, width) if own else None
     try:
         for q in qpos:
             d.qpos[:] = q

@@ -1,0 +1,355 @@
+"""Demonstrations to and from LeRobot's dataset format (v3.0), without LeRobot itself.
+
+A LeRobot v3 dataset is a folder::
+
+    meta/info.json                       codebase_version "v3.0", fps, features, paths, totals
+    meta/tasks.parquet                   task text (index) -> task_index
+    meta/subtasks.parquet                subtask name (index) -> subtask_index
+    meta/stats.json                      per feature: min, max, mean, std, count
+    meta/episodes/chunk-000/file-000.parquet   one row per episode: length, tasks, where its frames are
+    data/chunk-000/file-000.parquet      one row per frame
+
+multiform writes, per frame: ``observation.state`` (the env's observation, names in the feature's
+``names``), ``action`` (the mentor's command), ``subtask_index`` (the transition the mentor was
+executing, named in ``meta/subtasks.parquet``), ``next.done``, ``next.success`` and ``next.reward``
+(on the last frame of a successful demo), ``segment.success`` (the mentor's label of the segment the
+frame lies in: 1 success, 0 failure, -1 unlabelled; what LeRobot's reward classifier trains on), and
+LeRobot's ``timestamp``, ``frame_index``, ``episode_index``, ``index``, ``task_index``. Every episode
+row also carries its outcome, seed, reset options and labels (``multiform/...`` columns), and
+``info.json`` a ``multiform`` block (skill, env), so an export imports back exactly. Values stay
+float64 so frames equal the source bit for bit. No videos: the robot's sensors are the state.
+
+Reading takes any LeRobot v3 dataset with a state and an action vector; the caller names the
+variables (``state_names``), or the feature's own ``names`` are used when they are valid names.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import shutil
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import InvalidInput
+from .episode import Episode, SegmentLabel
+
+CODEBASE_VERSION = "v3.0"
+CHUNKS_SIZE = 1000
+FILE_MB = 100
+DATA_PATH = "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
+EPISODES_PATH = "meta/episodes/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
+NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+def _pa():
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:
+        raise InvalidInput("LeRobot datasets need pyarrow: pip install 'multiform[lerobot]'") from None
+    return pa, pq
+
+
+def _feature(dtype: str, shape: int, names: Sequence[str] | None = None) -> dict[str, Any]:
+    return {"dtype": dtype, "shape": [shape], "names": list(names) if names is not None else None}
+
+
+def _stats(x: np.ndarray) -> dict[str, Any]:
+    x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
+    q = np.quantile(x, [0.01, 0.10, 0.50, 0.90, 0.99], axis=0)
+    return {"min": x.min(0).tolist(), "max": x.max(0).tolist(), "mean": x.mean(0).tolist(),
+            "std": x.std(0).tolist(), "count": [len(x)], "q01": q[0].tolist(), "q10": q[1].tolist(),
+            "q50": q[2].tolist(), "q90": q[3].tolist(), "q99": q[4].tolist()}
+
+
+def _segment_labels(ep: Episode) -> np.ndarray:
+    out = np.full(ep.num_samples, -1, dtype=np.int64)
+    for lab in ep.labels:
+        out[lab.start:lab.end] = int(lab.success)
+    return out
+
+
+def write_lerobot(out: str | os.PathLike, episodes: Sequence[Episode], skill: str, env_name: str,
+                  env_kwargs: dict[str, Any] | None = None, task: str = "") -> Path:
+    """Write ``episodes`` as a LeRobot v3 dataset folder ``out`` (built beside it, then moved into
+    place; an existing non-empty ``out`` is refused)."""
+    pa, pq = _pa()
+    out = Path(out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise InvalidInput("exists and is not an empty folder; choose a new one", file=str(out))
+    if not episodes:
+        raise InvalidInput("no episodes to export", file=str(out))
+    first = episodes[0]
+    fps = 1.0 / first.dt
+    if abs(fps - round(fps)) > 1e-6:
+        raise InvalidInput(f"LeRobot needs a whole number of frames per second; dt = {first.dt}", file=str(out))
+    fps = int(round(fps))
+    subtasks = sorted({str(t) for ep in episodes for t in np.unique(ep.transitions)})
+    sub_index = {t: k for k, t in enumerate(subtasks)}
+    task = task or f"{skill}: the skill as the mentor demonstrated it"
+    features = {
+        "observation.state": _feature("float64", len(first.observation_names), first.observation_names),
+        "action": _feature("float64", len(first.command_names), first.command_names),
+        "subtask_index": _feature("int64", 1),
+        "segment.success": _feature("int64", 1),
+        "next.reward": _feature("float32", 1),
+        "next.done": _feature("bool", 1),
+        "next.success": _feature("bool", 1),
+        "timestamp": _feature("float32", 1),
+        "frame_index": _feature("int64", 1),
+        "episode_index": _feature("int64", 1),
+        "index": _feature("int64", 1),
+        "task_index": _feature("int64", 1),
+    }
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        rows, index, file_index, file_bytes = [], 0, 0, 0
+        ep_rows: list[dict[str, Any]] = []
+        states, actions = [], []
+        for e, ep in enumerate(episodes):
+            if ep.observation_names != first.observation_names or ep.command_names != first.command_names:
+                raise InvalidInput("episodes disagree on observation or command names", file=str(out),
+                                   element=f"episode {e}")
+            n = ep.num_samples
+            last = np.zeros(n, dtype=bool)
+            last[-1:] = True
+            ok = ep.outcome == "success"
+            table = {
+                "observation.state": ep.obs.astype(np.float64), "action": ep.actions.astype(np.float64),
+                "subtask_index": np.array([sub_index[str(t)] for t in ep.transitions], dtype=np.int64),
+                "segment.success": _segment_labels(ep),
+                "next.reward": (last & ok).astype(np.float32), "next.done": last, "next.success": last & ok,
+                "timestamp": (np.arange(n) * first.dt).astype(np.float32),
+                "frame_index": np.arange(n, dtype=np.int64), "episode_index": np.full(n, e, dtype=np.int64),
+                "index": np.arange(index, index + n, dtype=np.int64), "task_index": np.zeros(n, dtype=np.int64),
+            }
+            size = sum(v.nbytes for v in table.values())
+            if rows and file_bytes + size > FILE_MB * 2**20:
+                _write_data(tmp, rows, features, file_index, pa, pq)
+                rows, file_index, file_bytes = [], file_index + 1, 0
+            rows.append(table)
+            file_bytes += size
+            states.append(table["observation.state"])
+            actions.append(table["action"])
+            ep_rows.append({
+                "episode_index": e, "tasks": [task], "length": n,
+                "data/chunk_index": file_index // CHUNKS_SIZE, "data/file_index": file_index % CHUNKS_SIZE,
+                "dataset_from_index": index, "dataset_to_index": index + n,
+                "meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0,
+                "multiform/outcome": ep.outcome, "multiform/seed": int(ep.seed),
+                "multiform/reset_options": json.dumps(ep.reset_options, default=_jsonable),
+                "multiform/labels": json.dumps([[lab.start, lab.end, lab.transition, bool(lab.success),
+                                                 lab.labeller] for lab in ep.labels]),
+            })
+            index += n
+        _write_data(tmp, rows, features, file_index, pa, pq)
+        path = tmp / EPISODES_PATH.format(chunk_index=0, file_index=0)
+        path.parent.mkdir(parents=True)
+        pq.write_table(pa.Table.from_pylist(ep_rows), path)
+        import pandas as pd
+        pd.DataFrame({"task_index": [0]}, index=pd.Index([task], name="task")).to_parquet(tmp / "meta/tasks.parquet")
+        pd.DataFrame({"subtask_index": list(range(len(subtasks)))},
+                     index=pd.Index(subtasks, name="subtask")).to_parquet(tmp / "meta/subtasks.parquet")
+        stats = {"observation.state": _stats(np.concatenate(states)), "action": _stats(np.concatenate(actions))}
+        (tmp / "meta/stats.json").write_text(json.dumps(stats, indent=2))
+        info = {
+            "codebase_version": CODEBASE_VERSION, "robot_type": env_name, "total_episodes": len(episodes),
+            "total_frames": index, "total_tasks": 1, "chunks_size": CHUNKS_SIZE, "data_files_size_in_mb": FILE_MB,
+            "video_files_size_in_mb": 200, "fps": fps, "splits": {"train": f"0:{len(episodes)}"},
+            "data_path": DATA_PATH, "video_path": None, "features": features,
+            "multiform": {"skill": skill, "env_args": {"env_name": env_name, "env_kwargs": env_kwargs or {}},
+                          "dt": first.dt},
+        }
+        (tmp / "meta/info.json").write_text(json.dumps(info, indent=4))
+        if out.exists():
+            out.rmdir()
+        os.replace(tmp, out)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp)
+    return out
+
+
+def _write_data(root: Path, rows: list[dict[str, np.ndarray]], features: dict[str, Any], file_index: int,
+                pa, pq) -> None:
+    cols = {}
+    for key, ft in features.items():
+        arr = np.concatenate([r[key] for r in rows])
+        if ft["shape"] == [1] or arr.ndim == 1:
+            cols[key] = pa.array(arr.reshape(len(arr)))
+        else:
+            cols[key] = pa.FixedSizeListArray.from_arrays(pa.array(arr.reshape(-1)), arr.shape[1])
+    path = root / DATA_PATH.format(chunk_index=file_index // CHUNKS_SIZE, file_index=file_index % CHUNKS_SIZE)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    pq.write_table(pa.table(cols), path, compression="snappy")
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    raise TypeError(f"{type(obj).__name__} is not JSON serialisable")
+
+
+def read_lerobot(root: str | os.PathLike, state_names: Sequence[str] | None = None,
+                 command_names: Sequence[str] | None = None, state_key: str = "observation.state",
+                 action_key: str = "action", transition: str = "t0") -> tuple[list[Episode], dict[str, Any]]:
+    """Episodes of a LeRobot v3 dataset, and its metadata (skill and env when multiform wrote it).
+
+    Transition tags come from ``subtask_index`` (named in ``meta/subtasks.parquet``), else every
+    frame gets ``transition``. An episode's outcome and labels come from multiform's own columns,
+    else from ``next.success`` on its last frame: a successful episode's segments are labelled
+    successful (labeller ``lerobot``), an unsuccessful one's failed.
+    """
+    pa, pq = _pa()
+    root = Path(root)
+    file = str(root / "meta/info.json")
+    try:
+        info = json.loads((root / "meta/info.json").read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InvalidInput("not a LeRobot dataset (no meta/info.json)", file=str(root)) from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        raise InvalidInput(f"not valid JSON ({exc})", file=file) from None
+    if not isinstance(info, dict):
+        raise InvalidInput("must be a JSON object", file=file)
+    version = str(info.get("codebase_version", ""))
+    if not version.startswith("v3"):
+        raise InvalidInput(f"codebase_version {version!r}; this reader takes LeRobot v3 datasets", file=file)
+    features = info.get("features")
+    if not isinstance(features, dict):
+        raise InvalidInput("no 'features' mapping", file=file)
+    fps = info.get("fps")
+    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not math.isfinite(fps) or fps <= 0:
+        raise InvalidInput(f"fps must be a positive number, got {fps!r}", file=file, element="fps")
+    names = {}
+    for what, key, given in (("state", state_key, state_names), ("action", action_key, command_names)):
+        ft = features.get(key)
+        if not isinstance(ft, dict) or not isinstance(ft.get("shape"), list) or len(ft["shape"]) != 1:
+            raise InvalidInput(f"no 1-D {what} feature {key!r} (features: {', '.join(features)})", file=file)
+        dim = ft["shape"][0]
+        own = ft.get("names")
+        if isinstance(own, dict):                         # LeRobot also writes {"motors": [...]}
+            own = next(iter(own.values()), None)
+        chosen = list(given) if given else own
+        if not chosen or len(chosen) != dim or not all(isinstance(n, str) and NAME.match(n) for n in chosen):
+            raise InvalidInput(f"{what} feature {key!r} has {dim} entries; name them "
+                               f"({'--variables' if what == 'state' else '--commands'} a,b,...) with valid names, "
+                               f"got {chosen!r}", file=file)
+        if len(set(chosen)) != len(chosen):
+            raise InvalidInput(f"duplicate {what} names {chosen!r}", file=file)
+        names[what] = tuple(chosen)
+    data_files = sorted((root / "data").glob("chunk-*/file-*.parquet"))
+    if not data_files:
+        raise InvalidInput("no data/chunk-*/file-*.parquet files", file=str(root))
+    columns = [state_key, action_key, "episode_index", "frame_index"]
+    optional = [c for c in ("subtask_index", "next.success", "segment.success") if c in features]
+    frames: dict[str, list[np.ndarray]] = {c: [] for c in columns + optional}
+    for path in data_files:
+        try:
+            table = pq.read_table(path, columns=columns + optional)
+        except (OSError, ValueError, pa.ArrowException) as exc:
+            raise InvalidInput(f"unreadable parquet ({exc})", file=str(path)) from None
+        for c in frames:
+            col = table.column(c).combine_chunks()
+            if c in (state_key, action_key):
+                try:
+                    flat = col.flatten() if pa.types.is_list(col.type) or pa.types.is_fixed_size_list(col.type) else col
+                    arr = np.asarray(flat.to_numpy(zero_copy_only=False), dtype=np.float64).reshape(len(col), -1)
+                except (ValueError, pa.ArrowException) as exc:
+                    raise InvalidInput(f"column {c!r} is not a fixed-length number vector ({exc})",
+                                       file=str(path)) from None
+            else:
+                arr = np.asarray(col.to_numpy(zero_copy_only=False))
+            frames[c].append(arr)
+    cat = {c: np.concatenate(v) for c, v in frames.items()}
+    for c, what in ((state_key, "state"), (action_key, "action")):
+        dim = len(names[what])
+        if cat[c].shape[1] != dim:
+            raise InvalidInput(f"column {c!r} has {cat[c].shape[1]} entries, info.json says {dim}", file=str(root))
+        bad = ~np.isfinite(cat[c]).all(axis=1)
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise InvalidInput(f"column {c!r}: non-finite value in episode {int(cat['episode_index'][k])}, "
+                               f"frame {int(cat['frame_index'][k])}", file=str(root))
+    subtask_names = None
+    if "subtask_index" in cat:
+        subtask_names = _subtask_names(root, pq)
+    ep_meta = _episode_meta(root, pq)
+    episodes = []
+    dt = 1.0 / float(fps)
+    for e in np.unique(cat["episode_index"]):
+        sel = np.flatnonzero(cat["episode_index"] == e)
+        sel = sel[np.argsort(cat["frame_index"][sel], kind="stable")]
+        where = f"episode {int(e)}"
+        if not np.array_equal(cat["frame_index"][sel], np.arange(len(sel))):
+            raise InvalidInput("frame_index is not 0, 1, 2, ... without gaps", file=str(root), element=where)
+        if subtask_names is not None:
+            codes = cat["subtask_index"][sel].astype(np.int64)
+            if codes.min() < 0 or codes.max() >= len(subtask_names):
+                raise InvalidInput(f"subtask_index {int(codes.max())} has no name in meta/subtasks.parquet",
+                                   file=str(root), element=where)
+            tags = np.asarray(subtask_names, dtype=str)[codes]
+        else:
+            tags = np.full(len(sel), transition)
+        meta = ep_meta.get(int(e), {})
+        ep = Episode(obs=cat[state_key][sel], actions=cat[action_key][sel], transitions=tags,
+                     observation_names=names["state"], command_names=names["action"], dt=dt,
+                     seed=int(meta.get("multiform/seed", int(e)) or 0))
+        if meta.get("multiform/outcome") is not None:
+            ep.outcome = str(meta["multiform/outcome"])
+            ep.reset_options = _loads(meta.get("multiform/reset_options"), {}, root, where)
+            try:
+                ep.labels = [SegmentLabel(int(s), int(t), str(tr), bool(ok), str(who))
+                             for s, t, tr, ok, who in _loads(meta.get("multiform/labels"), [], root, where)]
+            except (TypeError, ValueError):
+                raise InvalidInput("multiform/labels must be [start, end, transition, success, labeller] rows",
+                                   file=str(root), element=where) from None
+            if any(not 0 <= lab.start < lab.end <= len(sel) for lab in ep.labels):
+                raise InvalidInput("a label's segment lies outside the episode", file=str(root), element=where)
+        elif "next.success" in cat:
+            ep.outcome = "success" if bool(cat["next.success"][sel][-1]) else "failure"
+            ep.labels = [SegmentLabel(s, t, tr, ep.outcome == "success", "lerobot") for s, t, tr in ep.segments()]
+        episodes.append(ep)
+    return episodes, info.get("multiform") if isinstance(info.get("multiform"), dict) else {}
+
+
+def _subtask_names(root: Path, pq) -> list[str]:
+    path = root / "meta/subtasks.parquet"
+    if not path.exists():
+        raise InvalidInput("frames have subtask_index but there is no meta/subtasks.parquet", file=str(root))
+    import pandas as pd
+    df = pd.read_parquet(path)
+    if "subtask_index" not in df.columns:
+        raise InvalidInput("no subtask_index column", file=str(path))
+    order = np.argsort(df["subtask_index"].to_numpy())
+    names = [str(n) for n in np.asarray(df.index)[order]]
+    if not np.array_equal(df["subtask_index"].to_numpy()[order], np.arange(len(names))):
+        raise InvalidInput("subtask_index must count 0, 1, 2, ...", file=str(path))
+    return names
+
+
+def _episode_meta(root: Path, pq) -> dict[int, dict[str, Any]]:
+    out: dict[int, dict[str, Any]] = {}
+    for path in sorted((root / "meta/episodes").glob("chunk-*/file-*.parquet")):
+        for row in pq.read_table(path).to_pylist():
+            if "episode_index" in row:
+                out[int(row["episode_index"])] = row
+    return out
+
+
+def _loads(text: Any, default: Any, root: Path, where: str) -> Any:
+    if text is None:
+        return default
+    try:
+        return json.loads(text)
+    except (TypeError, json.JSONDecodeError, RecursionError) as exc:
+        raise InvalidInput(f"multiform column is not valid JSON ({exc})", file=str(root), element=where) from None
