@@ -137,7 +137,7 @@ CASES: list[tuple[str, Callable[[Path], tuple[list[str], str]]]] = [
     ("label_seed_text", lambda w: do(["label", str(w / "demos.h5"), "-m", str(w / "model"), "--seed", "x"], "--seed")),
     # -- skill files and nets -----------------------------------------------------------------------
     ("check_missing_file", lambda w: do(["check", str(w / "nope.yaml")], "nope.yaml")),
-    ("check_folder", lambda w: do(["check", str(w / "model")], "model")),
+    ("check_folder", lambda w: do(["check", str(w / "run")], "run")),
     ("check_binary", lambda w: do((w / "b.yaml").write_bytes(bytes(range(256)) * 4), ["check", str(w / "b.yaml")],
                                   "b.yaml")),
     ("check_not_yaml", lambda w: do(["check", skill_file(w, "skill: [unclosed")], "bad.yaml")),
@@ -489,7 +489,7 @@ def test_evaluate_runs_the_models_task_and_writes_every_trial(work, capsys):
 @pytest.mark.parametrize("artifact", ["inverse_model.npz", "condition"])
 def test_a_non_finite_inverse_model_or_condition_on_disk_is_refused_before_any_trial(work, artifact, capsys):
     from multiform.learn.inverse import InverseDynamicsModel
-    from multiform.learn.servos import SERVOS
+    from multiform.learn.inverse import SERVOS
     from multiform.model import ModelLearners
     model = SkillModel(work / "model")
     if artifact == "inverse_model.npz":
@@ -508,5 +508,5 @@ def test_a_non_finite_inverse_model_or_condition_on_disk_is_refused_before_any_t
     before = snapshot(work)
     assert run(["practice", str(work / "model")]) == 2
     err = capsys.readouterr().err
-    assert rel.split("/")[-1] in err and "non-finite" in err and "Traceback" not in err
+    assert rel.split("/")[-1] in err and "finite" in err and "Traceback" not in err
     assert snapshot(work) == before
