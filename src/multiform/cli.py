@@ -289,6 +289,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> int:
     from .report.page import build_report
+    if args.redraw or args.view:
+        from .report.artifacts import rebuild
+        print(f"wrote {rebuild(args.run, view=args.view)}")
+        return 0
     print(f"wrote {build_report(args.run)}")
     return 0
 
@@ -429,6 +433,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("report", help="rebuild a run folder's report.html from its metrics.json")
     p.add_argument("run")
+    p.add_argument("--redraw", action="store_true",
+                   help="also redraw the plots, nets and videos (reruns the two picked trials from their seeds)")
+    p.add_argument("--view", action="store_true",
+                   help="also save the picked trials as rerun recordings (RUN/view/*.rrd); implies --redraw")
     p.set_defaults(func=cmd_report)
     return parser
 

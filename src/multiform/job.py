@@ -37,7 +37,8 @@ from .learn.labels import LabelStore
 from .learn.training import fit_judge, fit_law, fit_regions, judged_places, mentor_records
 from .model import SkillModel
 from .petri.net import APN
-from .stats import rate
+from . import __version__
+from .stats import evaluation_split, rate
 from .tasks import get_task
 
 Log = Callable[[str], None]
@@ -226,6 +227,8 @@ class Job:
                  success_rate={k: main[k] for k in ("successes", "trials", "rate", "low", "high")},
                  self_assessed=main["self_assessed"], agreement_with_physical_check=main["agreement"],
                  pushed=main["pushed"], target_success_rate=self.task.TARGET_SUCCESS_RATE,
+                 version=__version__, net_version=model.version,
+                 **{k: v for k, v in evaluation_split(main["trials_detail"]).items() if k != "pushed"},
                  ablation=[{k: r[k] for k in ("name", "notes", "successes", "trials", "rate", "low", "high")} for r in rows])
         # the host's speed beside the stage times: the same job takes 20 % longer in a busy hour
         # of a shared machine, and this median says whether a slow run was a slow host
