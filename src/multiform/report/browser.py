@@ -47,7 +47,7 @@ def render(page: str | os.PathLike, timeout: float = 60.0) -> dict[str, object]:
 def visible_text(dom: str) -> str:
     """The text a reader sees on a page (scripts, styles and tags removed, entities decoded)."""
     import html
-    dom = re.sub(r"(?is)<(script|style)[^>]*>.*?</\1>", " ", dom)
+    dom = re.sub(r"(?is)<(script|style|title)[^>]*>.*?</\1>", " ", dom)
     return re.sub(r"\s+", " ", html.unescape(re.sub(r"<[^>]+>", " ", dom))).strip()
 
 

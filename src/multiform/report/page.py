@@ -180,7 +180,7 @@ def page_html(m: dict[str, Any]) -> str:
     """The report page of a run's metrics (a self-contained HTML document)."""
     art = m.get("artifacts", {})
     revisions = m.get("revisions", [])
-    parts: list[str] = [f"<h1>multiform — {_e(m.get('skill', ''))}</h1>", _p(_e(m.get("description", "")))]
+    parts: list[str] = [f"<h1>multiform — {_code(m.get('skill', ''))}</h1>", _p(_e(m.get("description", "")))]
 
     rows: list[tuple[str, str]] = []
     if "demos" in m:
@@ -224,7 +224,7 @@ def page_html(m: dict[str, Any]) -> str:
     cfg = m.get("config", {})
     if cfg:
         trained_inverse = "inverse_model" in m.get("training", {})
-        conf = [("task", m.get("task", "")), ("skill definition", m.get("skill", "")), ("seed", cfg.get("seed")),
+        conf = [("task", m.get("task", "")), ("skill definition", Html(_code(m.get("skill", "")))), ("seed", cfg.get("seed")),
                 ("multiform version", m.get("version", "not recorded by this run")),
                 ("final net version", m.get("net_version", len(revisions))),
                 ("demonstrations", cfg.get("demos")), ("evaluation trials", cfg.get("eval_trials")),
@@ -257,7 +257,8 @@ def page_html(m: dict[str, Any]) -> str:
         parts.append("<h2>How the robot revised the definition</h2>")
         titles = {k: s.get("title", k) for k, s in m.get("scenarios", {}).items()}
         parts.append(_table([{**r, "operator": word(r["operator"]), "target": Html(_code(r["target"])),
-                              "scenario": titles.get(r.get("scenario"), r.get("scenario", ""))} for r in revisions],
+                              "scenario": titles.get(r.get("scenario")) or Html(_code(r.get("scenario", "")))}
+                             for r in revisions],
                             [("version", "version"), ("scenario", "practice scenario"),
                              ("after_trial", "after trial"), ("operator", "change"), ("target", "of"),
                              ("reason", "why (the evidence from the traces)")]))
