@@ -64,9 +64,11 @@ def write_video(model: SkillModel, trace, path: Path, fps: int, push_time: float
         env.close()
 
 
-def write_artifacts(job: Job, model: SkillModel, main: dict[str, Any], view_trials: tuple[str, ...] = ()) -> None:
+def write_artifacts(job: Job, model: SkillModel, main: dict[str, Any], view_trials: tuple[str, ...] = (),
+                    view_live: str | None = None) -> None:
     """Fill the run folder and ``job.metrics['artifacts']``; the picked trials named in
-    ``view_trials`` are also saved as rerun recordings (``view/<name>.rrd``)."""
+    ``view_trials`` are also saved as rerun recordings (``view/<name>.rrd``) and sent to the viewer
+    ``view_live`` (see :func:`multiform.view.stream.viewer_url`)."""
     out = job.out
     art: dict[str, Any] = {"plots": {}, "videos": {}}
     titles = {k: s.get("title", k) for k, s in job.metrics.get("scenarios", {}).items()}
@@ -102,8 +104,8 @@ def write_artifacts(job: Job, model: SkillModel, main: dict[str, Any], view_tria
         observer = None
         if key in view_trials:
             from ..view.stream import TrialStream
-            observer = TrialStream(model.apn, out / "view" / f"{key}.rrd", model_path=model.path,
-                                   title=f"{caption} (seed {spec.seed})")
+            observer = TrialStream(model.apn, out / "view" / f"{key}.rrd", title=f"{caption} (seed {spec.seed})",
+                                   live=view_live)
         trace, push_time = _trial(model, job, spec.seed, spec.push, qpos_every if job.cfg.videos else 0, observer)
         events = [(push_time, "push")] if push_time is not None else []
         plot = motion_plot(trace, job.task.PLOT_VARIABLES, out / "plots" / f"{key}.png",
@@ -111,6 +113,10 @@ def write_artifacts(job: Job, model: SkillModel, main: dict[str, Any], view_tria
         art["plots"][key] = {"file": str(plot.relative_to(out)), "caption": caption, "figure": figure,
                              "fired": trace.fired(), "seed": trace.seed, "push_time": push_time}
         if observer is not None:
+            judges = model.judges()
+            if judges:
+                observer.grade(model.grade(trace, f"view_{key}", judges))
+            observer.close()
             art.setdefault("views", {})[key] = {"file": str(observer.path.relative_to(out)), "caption": caption}
         if job.cfg.videos and trace.qpos is not None:
             path = out / "videos" / f"{key}.mp4"
