@@ -177,7 +177,8 @@ class Job:
         :meth:`baselines` queued them earlier)."""
         specs = self._specs()
         final = Variant("multiform (definition + demonstration + evaluation, with repair)", str(model.path),
-                        notes="the robot's revised net", use_inverse_model=self.cfg.inverse_model)
+                        notes="the robot's revised net" if model.version else "the mentor's net: practice revised nothing",
+                        use_inverse_model=self.cfg.inverse_model)
         with self._bar(len(specs), "evaluating") as bar:
             main = ev.collect(final, ev.submit(final, specs, lambda: bar.update(1)))
         self.log(f"  final success rate {100 * main['rate']:.1f} % ({main['successes']}/{main['trials']}, "

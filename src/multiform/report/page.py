@@ -300,6 +300,8 @@ def page_html(m: dict[str, Any]) -> str:
         if "evaluation" in plots:
             parts.append(_img(_plot_entry(plots["evaluation"])["file"], "success over the evaluation trials"))
         rows2 = [{**r, "success": _pct(r)} for r in m["ablation"]]
+        if not revisions and rows2 and rows2[0].get("notes") == "the robot's revised net":
+            rows2[0]["notes"] = "the mentor's net: practice revised nothing"
         parts.append(_table(rows2, [("name", "variant"), ("success", "success rate"), ("notes", "what it lacks")]))
     views = art.get("views", {})
     if views:
@@ -311,8 +313,9 @@ def page_html(m: dict[str, Any]) -> str:
     vids = art.get("videos", {})
     if vids:
         parts.append("<h2>Videos</h2>")
-        parts.append(_p("Each frame shows the time, the place the token is in, the transition being executed "
-                        "and, for 0.6 s from it, the push."))
+        pushed = any(_plot_entry(v).get("push_time") is not None for v in plots.values())
+        parts.append(_p("Each frame shows the time, the place the token is in and the transition being executed"
+                        + (", and for 0.6 s from it, the push." if pushed else ".")))
         for key, v in vids.items():
             parts.append(f"<h3>{_e(v.get('caption', key))}</h3><video controls muted src='{_e(v['file'])}'></video>")
     tr = m.get("training", {})
