@@ -66,7 +66,7 @@ class Job:
     """One run folder for one task."""
 
     def __init__(self, task: str | ModuleType, out: str | Path, config: JobConfig | None = None,
-                 log: Log = print, progress: bool = True):
+                 log: Log = print, progress: bool = True, view: str | None = None):
         self.task = get_task(task) if isinstance(task, str) else task
         self.out = Path(out)
         self.cfg = config or JobConfig()
@@ -74,6 +74,7 @@ class Job:
             self.cfg = replace(self.cfg, demos=int(getattr(self.task, "DEMOS", 40)))
         self.log = log
         self.progress = progress
+        self.view = view            # None, or where the picked trials stream (see multiform.view.stream.viewer_url)
         self.timings: dict[str, float] = {}
         self.metrics: dict[str, Any] = {}
 
@@ -236,7 +237,8 @@ class Job:
         per_ms = [1e3 * t["wall"] / t["duration"] for r in rows for t in r["trials_detail"] if t["duration"] > 0]
         if per_ms:
             self.timings["closed_loop_us_per_sim_ms"] = round(float(statistics.median(per_ms)), 1)
-        self._stage("report", lambda: write_artifacts(self, model, main))
+        picked = ("success_trial", "recovery_trial") if self.view is not None else ()
+        self._stage("report", lambda: write_artifacts(self, model, main, picked, self.view))
         self.timings["total_s"] = round(time.perf_counter() - t0, 1)
         m["timings"] = dict(self.timings)
         write_json(self.out / "metrics.json", m)

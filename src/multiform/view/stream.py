@@ -237,6 +237,20 @@ class TrialStream:
             self._pose_ticks, self._xpos, self._xquat = [], [], []
 
 
+def trial_views(folder: str | os.PathLike, live: str | None = None, name: str = "trial",
+                pick: Any = None) -> Any:
+    """A factory ``(trial index, executor) -> TrialStream`` that records trial ``k`` to
+    ``folder/<name>_<k>.rrd`` (and sends it to ``live``); ``pick(k)`` false skips a trial. Pass it as
+    a practice loop's ``observe``; any loop that runs trials by index wires the view in this one line."""
+    folder = Path(folder)
+
+    def make(k: int, executor: Any) -> TrialStream | None:
+        if pick is not None and not pick(k):
+            return None
+        return TrialStream(executor.apn, folder / f"{name}_{k:04d}.rrd", title=f"{name} {k}", live=live)
+    return make
+
+
 def read_recording(path: str | os.PathLike) -> dict[str, dict[str, list]]:
     """An ``.rrd`` file read back with rerun's own reader: per entity path, its columns (the
     timelines and each component) as lists, rows in the order they were logged."""
