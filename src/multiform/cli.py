@@ -289,18 +289,24 @@ def _add_view(p: argparse.ArgumentParser, what: str) -> None:
                         "rerun+http://host:9876/proxy) and save it as .rrd; needs pip install 'multiform[view]'")
 
 
+def _every(fps: float) -> int:
+    if not 0 < fps <= 1000:
+        raise InvalidInput(f"must be in (0, 1000] frames per second, got {fps}", element="--fps")
+    return max(1, int(round(1000.0 / fps)))          # control ticks of 1 ms per frame
+
+
 def cmd_replay(args: argparse.Namespace) -> int:
     from .view.replay import replay_demo, replay_trace, to_recording, to_video
     src = Path(args.source)
     if not src.exists():
         raise InvalidInput("does not exist", file=str(src))
     if src.suffix in (".h5", ".hdf5"):
-        r = replay_demo(src, args.demo)
+        r = replay_demo(src, args.demo, every=_every(args.fps))
         print(f"replayed demo {args.demo} of {src}: {len(r.states)} samples, states as recorded "
               f"(largest difference {r.max_error:.3g})")
         stem = f"{src.stem}_demo{args.demo}"
     else:
-        r = replay_trace(src, args.model)
+        r = replay_trace(src, args.model, every=_every(args.fps))
         stem = src.stem
     try:
         if args.video:
@@ -482,6 +488,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", "-m", default=None, help="skill model directory (for a trial's scene)")
     p.add_argument("--video", default=None, help="write an MP4 with time, place, transition and push on every frame")
     p.add_argument("--rrd", default=None, help="write the rerun recording here")
+    p.add_argument("--fps", type=float, default=30.0, help="frames per second of the video and the scene")
     _add_view(p, "the replay")
     p.set_defaults(func=cmd_replay)
 

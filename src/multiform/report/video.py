@@ -9,6 +9,7 @@ episode by replaying its commands from its seed.
 
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
@@ -143,13 +144,19 @@ def frame_labels(trace: Any, every: int, count: int, push_time: float | None = N
     return out
 
 
+@functools.lru_cache(maxsize=4)
+def _font(size: int) -> Any:
+    from PIL import ImageFont
+    return ImageFont.load_default(size=size)
+
+
 def draw_lines(frame: np.ndarray, lines: Sequence[str]) -> np.ndarray:
     """``frame`` with ``lines`` written in its top-left corner on a dark band (Pillow's bitmap font);
     a line reading "PUSH" is drawn in red."""
-    from PIL import Image, ImageDraw, ImageFont
+    from PIL import Image, ImageDraw
     img = Image.fromarray(np.ascontiguousarray(frame))
     draw = ImageDraw.Draw(img)
-    font = ImageFont.load_default(size=max(11, frame.shape[0] // 28))
+    font = _font(max(11, frame.shape[0] // 28))
     y = 4
     for line in lines:
         box = draw.textbbox((6, y), line, font=font)

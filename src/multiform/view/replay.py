@@ -73,7 +73,7 @@ def replay_demo(path: str | os.PathLike, index: int = 0, every: int = 33) -> Rep
         raise InvalidInput(f"has {len(ds.episodes)} demonstration(s); there is no demo {index}", file=str(path),
                            element="--demo")
     ep: Episode = ds.episodes[index]
-    env = gym.make(ds.env_name, disable_env_checker=True, render_mode="rgb_array", **ds.env_kwargs)
+    env = gym.make(ds.env_name, disable_env_checker=True, **{**ds.env_kwargs, "render_mode": "rgb_array", "shadows": False})
     obs, snaps = replay(env, ep, qpos_every=every)
     n = min(len(obs), ep.num_samples)
     err = float(np.max(np.abs(obs[:n] - ep.obs[:n]))) if n else 0.0
@@ -108,7 +108,7 @@ def replay_trace(path: str | os.PathLike, model_dir: str | os.PathLike | None = 
         from ..model import SkillModel
         model = SkillModel(model_dir)
         apn = model.history.version(trace.net_version)
-        env = model.make_env(render_mode="rgb_array")
+        env = model.make_env(render_mode="rgb_array", shadows=False)
         if trace.qpos is not None:
             snaps, every = list(trace.qpos), trace.qpos_every
         else:
