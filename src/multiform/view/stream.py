@@ -64,6 +64,9 @@ class Recording:
     def close(self) -> Path:
         self.rec.flush()
         self.rec.disconnect()
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(self._tmp, 0o666 & ~umask)        # mkstemp made it private; a saved file gets the usual mode
         os.replace(self._tmp, self.path)
         return self.path
 
