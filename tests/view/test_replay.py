@@ -67,3 +67,28 @@ def test_replay_reproduces_the_demo_into_the_view_and_a_video_with_overlays(demo
 def test_replay_refuses_a_demo_that_is_not_in_the_file(demos, capsys):
     assert main(["replay", str(demos), "--demo", "5"]) == 2
     assert "there is no demo 5" in capsys.readouterr().err
+
+
+def test_a_saved_trace_replays_into_the_view_as_recorded(tmp_path):
+    import gymnasium as gym
+    import yaml
+
+    from multiform.petri.skillfile import parse_skill
+    from multiform.runtime.executor import Executor
+
+    from ..runtime.test_executor import NET, Const, Spring
+    env = gym.make("multiform/ArmPendulum-v0", action_mode="ee")
+    trace = Executor(parse_skill(yaml.safe_dump(NET)), env, {"go": Const(0.8), "back": Spring()}).run(seed=3)
+    env.close()
+    trace.save(tmp_path / "trial.npz")
+    assert main(["replay", str(tmp_path / "trial.npz")]) == 0
+    rec = read_recording(tmp_path / "trial.rrd")
+    assert [t[0] for t in rec["/net/fired"]["TextLog:text"]] == trace.fired()
+    got = rec["/state/x"]
+    order = np.argsort(np.array(got["tick"], dtype=np.int64))
+    assert np.array_equal(np.array([got["Scalars:scalars"][i][0] for i in order], np.float32), trace.value("x"))
+    for i, place in enumerate(trace.place_ids):
+        m = rec[f"/net/marking/{place}"]
+        last = {int(k): v[0] for k, v in zip(m["tick"], m["Scalars:scalars"])}
+        assert all(trace.marking[k, i] == v for k, v in last.items())
+    assert main(["replay", str(tmp_path / "trial.npz"), "--video", str(tmp_path / "t.mp4")]) == 2   # no scene

@@ -119,8 +119,8 @@ def replay_trace(path: str | os.PathLike, model_dir: str | os.PathLike | None = 
                 env.close()
                 raise InvalidInput(f"running trial seed {trace.seed} again with net version {trace.net_version} "
                                    f"does not give the recorded trial (largest state difference {err:.3g}; a push "
-                                   f"in the trial is not in the trace): shown without a scene it works without "
-                                   f"--model", file=str(path))
+                                   f"during the trial is not kept in its trace); replay it without --model to see "
+                                   f"its series, marking and firings without the scene", file=str(path))
             snaps = list(again.qpos)
     tags = trace.tags()
     places = [", ".join(p for p, k in zip(trace.place_ids, row) if k > 0) for row in trace.marking]
@@ -139,12 +139,13 @@ def to_recording(r: Replayed, path: str | os.PathLike, live: str | None = None) 
         ticks = np.arange(len(r.states))
         log_series(rec, "state", r.state_names, ticks, r.dt, np.asarray(r.states, np.float64))
         log_series(rec, "command", r.command_names, ticks, r.dt, np.asarray(r.commands, np.float64))
-        if r.apn is not None and r.marking is not None:
-            log_net(rec, r.apn)
-            log_marking(rec, r.apn, 0, r.dt, r.marking[0], None)
+        if r.marking is not None:          # a trial: the net's marking and firings
+            if r.apn is not None:
+                log_net(rec, r.apn)
+            log_marking(rec, r.apn, 0, r.dt, r.marking[0], None, r.place_ids)
             for k, t in r.firings:
-                log_marking(rec, r.apn, k, r.dt, r.marking[k], t)
-        else:
+                log_marking(rec, r.apn, k, r.dt, r.marking[k], t, r.place_ids)
+        else:                               # a demonstration: what the mentor said it was doing
             for k, t in r.firings:
                 log_event(rec, k, r.dt, f"the mentor: {t}")
         for a, b in r.pushes:

@@ -91,16 +91,20 @@ def log_net(rec: rr.RecordingStream, apn: APN) -> None:
     rec.log("net/graph", rr.GraphEdges(edges, graph_type="directed"), static=True)
 
 
-def log_marking(rec: rr.RecordingStream, apn: APN, tick: int, dt: float, marking: Sequence[int],
-                fired: str | None) -> None:
-    """The marking at ``tick`` (scalars per place) and the graph with it (and ``fired``) coloured."""
+def log_marking(rec: rr.RecordingStream, apn: APN | None, tick: int, dt: float, marking: Sequence[int],
+                fired: str | None, place_ids: Sequence[str] = ()) -> None:
+    """The marking at ``tick`` (scalars per place) and the graph with it (and ``fired``) coloured;
+    without the net (``apn`` None) the marking of ``place_ids`` and the firing only."""
     _set_time(rec, tick, dt)
-    for p, n in zip(apn.place_ids, marking):
+    places = apn.place_ids if apn is not None else tuple(place_ids)
+    for p, n in zip(places, marking):
         rec.log(f"net/marking/{p}", rr.Scalars([float(n)]))
-    ids = list(apn.place_ids) + list(apn.transition_ids)
-    colours = [MARKED if n > 0 else IDLE for n in marking] + [FIRED if t == fired else IDLE for t in apn.transition_ids]
-    labels = [f"{p} ({n})" if n else p for p, n in zip(apn.place_ids, marking)] + list(apn.transition_ids)
-    rec.log("net/graph", rr.GraphNodes(ids, labels=labels, colors=colours))
+    if apn is not None:
+        ids = list(apn.place_ids) + list(apn.transition_ids)
+        colours = [MARKED if n > 0 else IDLE for n in marking] + [FIRED if t == fired else IDLE
+                                                                  for t in apn.transition_ids]
+        labels = [f"{p} ({n})" if n else p for p, n in zip(apn.place_ids, marking)] + list(apn.transition_ids)
+        rec.log("net/graph", rr.GraphNodes(ids, labels=labels, colors=colours))
     if fired is not None:
         rec.log("net/fired", rr.TextLog(fired, level="INFO"))
 
