@@ -216,3 +216,20 @@ def test_learning_from_practice_resumes_as_if_never_stopped(run, tmp_path):
     assert len(states[0]) == 12 and segments[0], "no own segment in 12 trials: nothing was learned from"
     assert any(op == "refit_law" for op, _ in histories[0])
     assert sum("mentor" in t for t in states[0]) == 2
+
+
+def test_practice_with_the_view_saves_every_trial_as_it_ran(run, tmp_path):
+    pytest.importorskip("rerun")
+    from multiform.view.stream import read_recording
+    model_dir = tmp_path / "model"
+    shutil.copytree(run / "model", model_dir, ignore=shutil.ignore_patterns("practice", "experience"))
+    folder = tmp_path / "practice"
+    cmd = [sys.executable, "-m", "multiform.cli", "practice", str(model_dir), "--scenario", "a_strict", "--out",
+           str(folder), "--max-trials", "2", "--seed", "5", "--view"]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env={**os.environ, "DISPLAY": ""})
+    assert done.returncode == 0, done.stdout + done.stderr
+    state = json.loads((folder / "state.json").read_text())
+    for t in state["trials"]:
+        rec = read_recording(folder / "view" / f"trial_{t['trial']:04d}.rrd")
+        assert [x[0] for x in rec["/net/fired"]["TextLog:text"]] == t["fired"]
+        assert any(x[0].startswith("the judges: score") for x in rec["/events"]["TextLog:text"])

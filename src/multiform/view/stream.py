@@ -137,14 +137,14 @@ def log_grade(rec: rr.RecordingStream, tick: int, dt: float, grade: Any, success
 class TrialStream:
     """An executor observer that streams the running trial (see the module docstring).
 
-    State and command rows are sent in batches of ``flush_every`` ticks (0.1 s of simulated time by
+    State and command rows are sent in batches of ``flush_every`` ticks (0.5 s of simulated time by
     default), firings and events at once; the scene's poses are kept every ``scene_every`` ticks.
     Call :meth:`grade` after the trial to add the judges' grades; the file is complete once the
     trial ends (or after :meth:`grade`, when it is called).
     """
 
     def __init__(self, apn: APN, path: str | os.PathLike, title: str = "", live: str | None = None,
-                 flush_every: int = 100, scene_every: int = 33):
+                 flush_every: int = 500, scene_every: int = 33):
         self.apn, self.title, self.live = apn, title, live
         self.path = Path(path)
         self.flush_every, self.scene_every = int(flush_every), int(scene_every)
@@ -156,7 +156,7 @@ class TrialStream:
         self.recording = Recording(self.path, self.title or f"trial seed {seed}", self.live)
         rec = self.recording.rec
         self.dt = executor.dt
-        self.value_names = tuple(executor._value_names)
+        self.value_names = tuple(executor.apn.variables) + tuple(executor.apn.derived)   # as the trace keeps them
         self.command_names = tuple(executor.cmd_names)
         self._n = len(self.value_names)
         self._sat = executor.saturator
