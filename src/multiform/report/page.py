@@ -235,7 +235,8 @@ def page_html(m: dict[str, Any]) -> str:
                 ("joints driven by", "the learned auxiliary inverse model" if trained_inverse
                  else "the env's own servos (no inverse model)"),
                 ("worker processes", cfg.get("workers"))]
-        parts.append("<h2>Configuration</h2>" + _table([{"k": k, "v": v} for k, v in conf], [("k", "setting"), ("v", "value")]))
+        parts.append("<h2>Configuration</h2>" + _table([{"k": k, "v": v if isinstance(v, Html) else _fmt(v)}
+                                                         for k, v in conf], [("k", "setting"), ("v", "value")]))
 
     d = m.get("demos")
     if isinstance(d, dict):
