@@ -3,7 +3,6 @@ configuration and demonstrations, each task's own figure numbers, no raw Python 
 
 from __future__ import annotations
 
-import copy
 import re
 
 import pytest
