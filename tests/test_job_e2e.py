@@ -28,7 +28,7 @@ SMALL = JobConfig(demos=14, eval_trials=12, ablation_trials=6, practice_max_tria
 @pytest.fixture(scope="module")
 def run(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("run")
-    Job("pendulum", out, SMALL, log=lambda s: None, progress=False).run()
+    Job("pendulum", out, SMALL, log=lambda s: None, progress=False, view="").run()   # view: the .rrd files only
     return out
 
 
@@ -80,8 +80,28 @@ def test_report_renders_in_headless_chromium(run):
     page = render(run / "report.html")
     assert page["returncode"] == 0
     assert page["images"] >= 3 and page["images_ok"] == page["images"], page
-    assert page["tables"] >= 2, page
+    assert page["tables"] >= 2, {k: v for k, v in page.items() if k not in ("dom", "text")}
     assert page["console_errors"] == []
+    m = json.loads((run / "metrics.json").read_text())
+    text = page["text"]
+    for item in ("pushed trials", "trials not pushed", "the robot's own verdict", "Configuration", "Demonstrations",
+                 "cf. the paper's Fig. 7", f"seed {SMALL.seed}", "multiform version"):
+        assert item in text, item
+    for key, plot in m["artifacts"]["plots"].items():
+        if isinstance(plot, dict) and plot.get("fired"):
+            assert "Fired in order: " + " ".join(plot["fired"]) in text, key
+
+
+def test_the_picked_trials_are_saved_for_the_view_and_equal_their_plots(run):
+    pytest.importorskip("rerun")
+    from multiform.view.stream import read_recording
+    m = json.loads((run / "metrics.json").read_text())
+    views = m["artifacts"].get("views", {})
+    assert "success_trial" in views
+    for key, v in views.items():
+        rec = read_recording(run / v["file"])
+        assert [t[0] for t in rec["/net/fired"]["TextLog:text"]] == m["artifacts"]["plots"][key]["fired"]
+        assert any(t[0].startswith("the judges: score") for t in rec["/events"]["TextLog:text"])
 
 
 def _practice_cmd(model: Path, folder: Path) -> list[str]:
@@ -196,3 +216,20 @@ def test_learning_from_practice_resumes_as_if_never_stopped(run, tmp_path):
     assert len(states[0]) == 12 and segments[0], "no own segment in 12 trials: nothing was learned from"
     assert any(op == "refit_law" for op, _ in histories[0])
     assert sum("mentor" in t for t in states[0]) == 2
+
+
+def test_practice_with_the_view_saves_every_trial_as_it_ran(run, tmp_path):
+    pytest.importorskip("rerun")
+    from multiform.view.stream import read_recording
+    model_dir = tmp_path / "model"
+    shutil.copytree(run / "model", model_dir, ignore=shutil.ignore_patterns("practice", "experience"))
+    folder = tmp_path / "practice"
+    cmd = [sys.executable, "-m", "multiform.cli", "practice", str(model_dir), "--scenario", "a_strict", "--out",
+           str(folder), "--max-trials", "2", "--seed", "5", "--view"]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env={**os.environ, "DISPLAY": ""})
+    assert done.returncode == 0, done.stdout + done.stderr
+    state = json.loads((folder / "state.json").read_text())
+    for t in state["trials"]:
+        rec = read_recording(folder / "view" / f"trial_{t['trial']:04d}.rrd")
+        assert [x[0] for x in rec["/net/fired"]["TextLog:text"]] == t["fired"]
+        assert any(x[0].startswith("the judges: score") for x in rec["/events"]["TextLog:text"])

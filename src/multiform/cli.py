@@ -365,9 +365,9 @@ def cmd_practice(args: argparse.Namespace) -> int:
                            element="--scenario")
     sc = scen[args.scenario]
     cfg = PracticeConfig(max_trials=args.max_trials, seed=args.seed + sc.get("seed", 0), **sc.get("config", {}))
-    practice = Practice(model, args.out or Path(args.model) / "practice" / args.scenario, cfg,
-                        options=sc["options"], perturb=sc.get("perturb"), name=sc["name"],
-                        mentor=sc["mentor"]() if sc.get("mentor") else None)
+    folder = Path(args.out or Path(args.model) / "practice" / args.scenario)
+    practice = Practice(model, folder, cfg, options=sc["options"], perturb=sc.get("perturb"), name=sc["name"],
+                        mentor=sc["mentor"]() if sc.get("mentor") else None, observe=_views(args, folder / "view"))
 
     def show(state, trial):
         mark = "ok  " if trial["success"] else "FAIL"
@@ -419,13 +419,58 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     return 1 if res["faults"] else 0
 
 
+def _views(args: argparse.Namespace, folder: Path):
+    """The live view's trial factory for ``--view`` (None without it): each trial to an .rrd in ``folder``."""
+    if args.view is None:
+        return None
+    from .view.stream import trial_views
+    print(f"the view: each trial saved in {folder}" + ("" if args.view == "spawn" else f", streamed to {args.view}"))
+    return trial_views(folder, live=args.view)
+
+
+def _add_view(p: argparse.ArgumentParser, what: str) -> None:
+    p.add_argument("--view", nargs="?", const="spawn", default=None, metavar="URL",
+                   help=f"stream {what} to a rerun viewer (a local one with a display, or the viewer at URL, e.g. "
+                        "rerun+http://host:9876/proxy) and save it as .rrd; needs pip install 'multiform[view]'")
+
+
+def _every(fps: float) -> int:
+    if not 0 < fps <= 1000:
+        raise InvalidInput(f"must be in (0, 1000] frames per second, got {fps}", element="--fps")
+    return max(1, int(round(1000.0 / fps)))          # control ticks of 1 ms per frame
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    from .view.replay import replay_demo, replay_trace, to_recording, to_video
+    src = Path(args.source)
+    if not src.exists():
+        raise InvalidInput("does not exist", file=str(src))
+    if src.suffix in (".h5", ".hdf5"):
+        r = replay_demo(src, args.demo, every=_every(args.fps))
+        print(f"replayed demo {args.demo} of {src}: {len(r.states)} samples, states as recorded "
+              f"(largest difference {r.max_error:.3g})")
+        stem = f"{src.stem}_demo{args.demo}"
+    else:
+        r = replay_trace(src, args.model, every=_every(args.fps))
+        stem = src.stem
+    try:
+        if args.video:
+            print(f"wrote {to_video(r, args.video)}")
+        if args.rrd or args.view is not None or not args.video:
+            print(f"wrote {to_recording(r, args.rrd or src.with_name(stem + '.rrd'), live=args.view)}")
+    finally:
+        if r.env is not None:
+            r.env.close()
+    return 0
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     from .job import Job, JobConfig
     cfg = JobConfig(demos=args.demos, eval_trials=args.eval_trials, ablation_trials=args.ablation_trials,
                     practice_max_trials=args.max_trials, workers=args.workers, seed=args.seed,
                     videos=not args.no_video, inverse_model=not args.reference_controller,
                     learn=args.learn_from_practice, practice_budget=args.practice_budget)
-    m = Job(args.task, args.out, cfg).run()
+    m = Job(args.task, args.out, cfg, view=args.view).run()
     sr = m["success_rate"]
     print(f"success rate {100 * sr['rate']:.1f} % ({sr['successes']}/{sr['trials']}; 95 % CI "
           f"{100 * sr['low']:.1f}-{100 * sr['high']:.1f} %); report: {Path(args.out) / 'report.html'}")
@@ -442,7 +487,11 @@ def cmd_report(args: argparse.Namespace) -> int:
         raise InvalidInput("must be a JSON object", file=str(path))
     with exclusive(args.run):
         try:
-            out = build_report(args.run, metrics)
+            if args.redraw or args.view:
+                from .report.artifacts import rebuild
+                out = rebuild(args.run, view=args.view)
+            else:
+                out = build_report(args.run, metrics)
         except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
             raise InvalidInput(f"malformed ({type(exc).__name__}: {exc})", file=str(path)) from None
     print(f"wrote {out}")
@@ -590,6 +639,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--env-module", action="append", default=[], metavar="MODULE",
                    help="allow the model's env id to import MODULE (Gymnasium's module:Env-v0 form); a model "
                         "directory never imports code on its own")
+    _add_view(p, "each trial (saved in the practice folder's view/)")
     p.set_defaults(func=cmd_practice)
 
     p = sub.add_parser("evaluate", help="run a trained model on the task's evaluation trials; success with its "
@@ -628,10 +678,29 @@ def build_parser() -> argparse.ArgumentParser:
                    help="practice trials of all scenarios together at most")
     p.add_argument("--reference-controller", action="store_true",
                    help="drive the arm with the env's model-based controller instead of the learned inverse model")
+    _add_view(p, "the report's picked trials (saved in RUN/view/)")
     p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("replay", help="replay a demonstration or a saved trial into the view (.rrd) or to an MP4",
+                       description="A demonstration (a .h5 file, --demo picks one) is replayed on its env from its "
+                                   "seed and commands and checked to reproduce the recorded states; a trial trace "
+                                   "(.npz) is shown as recorded (its scene needs --model, the model that ran it). "
+                                   "Without --video or --rrd, writes SOURCE's name with .rrd.")
+    p.add_argument("source", help="demonstration file (.h5) or trial trace (.npz)")
+    p.add_argument("--demo", type=int, default=0, help="which demonstration of the file (from 0)")
+    p.add_argument("--model", "-m", default=None, help="skill model directory (for a trial's scene)")
+    p.add_argument("--video", default=None, help="write an MP4 with time, place, transition and push on every frame")
+    p.add_argument("--rrd", default=None, help="write the rerun recording here")
+    p.add_argument("--fps", type=float, default=30.0, help="frames per second of the video and the scene")
+    _add_view(p, "the replay")
+    p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("report", help="rebuild a run folder's report.html from its metrics.json")
     p.add_argument("run")
+    p.add_argument("--redraw", action="store_true",
+                   help="also redraw the plots, nets and videos (reruns the two picked trials from their seeds)")
+    p.add_argument("--view", action="store_true",
+                   help="also save the picked trials as rerun recordings (RUN/view/*.rrd); implies --redraw")
     p.set_defaults(func=cmd_report)
     return parser
 

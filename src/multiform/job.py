@@ -38,7 +38,8 @@ from .learn.training import fit_judge, fit_law, fit_regions, judged_places, ment
 from .lock import exclusive
 from .model import SkillModel, staged_model_dir
 from .petri.net import APN
-from .stats import rate
+from . import __version__
+from .stats import evaluation_split, rate
 from .tasks import get_task
 
 Log = Callable[[str], None]
@@ -66,7 +67,7 @@ class Job:
     """One run folder for one task."""
 
     def __init__(self, task: str | ModuleType, out: str | Path, config: JobConfig | None = None,
-                 log: Log = print, progress: bool = True):
+                 log: Log = print, progress: bool = True, view: str | None = None):
         self.task = get_task(task) if isinstance(task, str) else task
         self.out = Path(out)
         self.cfg = config or JobConfig()
@@ -74,6 +75,7 @@ class Job:
             self.cfg = replace(self.cfg, demos=int(getattr(self.task, "DEMOS", 40)))
         self.log = log
         self.progress = progress
+        self.view = view            # None, or where the picked trials stream (see multiform.view.stream.viewer_url)
         self.timings: dict[str, float] = {}
         self.metrics: dict[str, Any] = {}
 
@@ -182,7 +184,8 @@ class Job:
         :meth:`baselines` queued them earlier)."""
         specs = self._specs()
         final = Variant("multiform (definition + demonstration + evaluation, with repair)", str(model.path),
-                        notes="the robot's revised net", use_inverse_model=self.cfg.inverse_model)
+                        notes="the robot's revised net" if model.version else "the mentor's net: practice revised nothing",
+                        use_inverse_model=self.cfg.inverse_model)
         with self._bar(len(specs), "evaluating") as bar:
             main = ev.collect(final, ev.submit(final, specs, lambda: bar.update(1)))
         self.log(f"  final success rate {100 * main['rate']:.1f} % ({main['successes']}/{main['trials']}, "
@@ -240,13 +243,16 @@ class Job:
                  success_rate={k: main[k] for k in ("successes", "trials", "rate", "low", "high")},
                  self_assessed=main["self_assessed"], agreement_with_physical_check=main["agreement"],
                  pushed=main["pushed"], target_success_rate=self.task.TARGET_SUCCESS_RATE,
+                 version=__version__, net_version=model.version,
+                 **{k: v for k, v in evaluation_split(main["trials_detail"]).items() if k != "pushed"},
                  ablation=[{k: r[k] for k in ("name", "notes", "successes", "trials", "rate", "low", "high")} for r in rows])
         # the host's speed beside the stage times: the same job takes 20 % longer in a busy hour
         # of a shared machine, and this median says whether a slow run was a slow host
         per_ms = [1e3 * t["wall"] / t["duration"] for r in rows for t in r["trials_detail"] if t["duration"] > 0]
         if per_ms:
             self.timings["closed_loop_us_per_sim_ms"] = round(float(statistics.median(per_ms)), 1)
-        self._stage("report", lambda: write_artifacts(self, model, main))
+        picked = ("success_trial", "recovery_trial") if self.view is not None else ()
+        self._stage("report", lambda: write_artifacts(self, model, main, picked, self.view))
         self.timings["total_s"] = round(time.perf_counter() - t0, 1)
         m["timings"] = dict(self.timings)
         write_json(self.out / "metrics.json", m)

@@ -21,3 +21,18 @@ def rate(successes: int, trials: int) -> dict[str, float | int]:
     lo, hi = wilson(successes, trials)
     return {"successes": successes, "trials": trials, "rate": successes / trials if trials else 0.0,
             "low": lo, "high": hi}
+
+
+def evaluation_split(detail: list[dict]) -> dict[str, object]:
+    """From evaluation trial records (``success``, ``self_success``, ``pushed``): the rates of pushed
+    and unpushed trials (None when there are none) and how the robot's own verdict met the physical
+    check (``both_success``, ``robot_only``, ``check_only``, ``both_failure``)."""
+    pushed = [r for r in detail if r.get("pushed")]
+    plain = [r for r in detail if not r.get("pushed")]
+    count = lambda rows: rate(sum(bool(r["success"]) for r in rows), len(rows)) if rows else None  # noqa: E731
+    v = {"both_success": 0, "robot_only": 0, "check_only": 0, "both_failure": 0}
+    for r in detail:
+        key = {(True, True): "both_success", (True, False): "robot_only", (False, True): "check_only",
+               (False, False): "both_failure"}[(bool(r["self_success"]), bool(r["success"]))]
+        v[key] += 1
+    return {"pushed": count(pushed), "unpushed": count(plain), "verdicts": v}

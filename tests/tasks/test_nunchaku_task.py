@@ -134,3 +134,14 @@ def test_small_nunchaku_job_end_to_end(tmp_path):
     video = out / m["artifacts"]["videos"]["success_trial"]["file"]
     assert video.exists() and video.stat().st_size > 10_000
     assert (out / "demos.h5").exists() and list((out / "nets").glob("net_v0.svg"))
+    # the report in the nunchaku's own words (its figure, no revision, no push)
+    from multiform.report.browser import chromium, render
+    if chromium() is not None:
+        page = render(out / "report.html")
+        assert page["images_ok"] == page["images"] >= 3 and page["console_errors"] == []
+        text = page["text"]
+        assert "Fig. 11" in text and "Fig. 7" not in text
+        if not disk["revisions"]:
+            assert "practice revised nothing" in text and "before and after each revision" not in text
+        assert "no evaluation trial of this task was pushed" in text and "the robot's own verdict" in text
+        assert "Fired in order: " + " ".join(m["artifacts"]["plots"]["success_trial"]["fired"]) in text

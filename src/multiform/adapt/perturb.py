@@ -20,6 +20,7 @@ class PushInPlace:
     size: float
     duration: float
     done: bool = False
+    tick: int | None = None         # when it pushed (for the plots, the view and the video overlay)
 
     def __call__(self, tick: int, runner: NetRunner, env: gym.Env) -> None:
         if self.done:
@@ -31,3 +32,4 @@ class PushInPlace:
         if runner.values[slot] >= self.after and runner.marking[runner.apn.place_index(self.place)] > 0:
             env.unwrapped.push(self.size, self.duration)
             self.done = True
+            self.tick = tick

@@ -147,8 +147,9 @@ class Practice:
 
     def __init__(self, model: SkillModel, folder: str | Path, config: PracticeConfig | None = None,
                  options: Options | None = None, perturb: Perturb | None = None, name: str = "practice",
-                 mentor: MentorGrader | None = None):
+                 mentor: MentorGrader | None = None, observe: Callable[[int, Executor], Any] | None = None):
         self.model = model
+        self.observe = observe          # trial index, executor -> an executor observer (e.g. the live view) or None
         self.folder = Path(folder)
         self.config = config or PracticeConfig()
         self.options = options or (lambda k: {})
@@ -232,8 +233,9 @@ class Practice:
                 for i, law in enumerate(sorted(explorer.laws)):
                     explorer.laws[law].reseed(cfg.trial_seed(k) * 31 + i)
                 runner = explorer
+            view = self.observe(k, executor) if self.observe else None
             trace = runner.run(seed=cfg.trial_seed(k), options=self.options(k),
-                               perturb=self.perturb(k) if self.perturb else None)
+                               perturb=self.perturb(k) if self.perturb else None, observer=view)
             if trace.outcome == "fault":
                 # a non-finite value is the model's or the simulator's fault, not the skill's: nothing
                 # is learned or repaired from it, and practice stops until someone looks
@@ -242,6 +244,10 @@ class Practice:
                 break
             grade = self.model.grade(trace, self.source(k), judges, apn=executor.apn) if judges else None
             success = trace.success and (grade is None or grade.success)
+            if view is not None:
+                if grade is not None:
+                    view.grade(grade, success)
+                view.close()
             summary = {"trial": k, "seed": cfg.trial_seed(k), "net_version": version, "outcome": trace.outcome,
                        "success": bool(success), "judge_score": None if grade is None else round(grade.score, 4),
                        "judge_places": None if grade is None else {p: round(v, 4) for p, v in grade.places.items()},

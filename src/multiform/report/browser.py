@@ -41,4 +41,25 @@ def render(page: str | os.PathLike, timeout: float = 60.0) -> dict[str, object]:
               if "CONSOLE" in ln and ("Uncaught" in ln or "Error" in ln or "Failed to load" in ln)]
     return {"returncode": proc.returncode, "images": int(attrs.get("data-images", -1)),
             "images_ok": int(attrs.get("data-images-ok", -1)), "tables": int(attrs.get("data-tables", -1)),
-            "console_errors": errors, "dom_length": len(dom)}
+            "console_errors": errors, "dom_length": len(dom), "dom": dom, "text": visible_text(dom)}
+
+
+def visible_text(dom: str) -> str:
+    """The text a reader sees on a page (scripts, styles and tags removed, entities decoded)."""
+    import html
+    dom = re.sub(r"(?is)<(script|style|title)[^>]*>.*?</\1>", " ", dom)
+    return re.sub(r"\s+", " ", html.unescape(re.sub(r"<[^>]+>", " ", dom))).strip()
+
+
+def screenshot(page: str | os.PathLike, out: str | os.PathLike, width: int = 1200, height: int = 6000,
+               timeout: float = 60.0) -> Path:
+    """A PNG of ``page`` as headless Chromium draws it (``width``×``height`` CSS pixels)."""
+    exe = chromium()
+    if exe is None:
+        raise FileNotFoundError("chromium is not installed (make setup installs it)")
+    out = Path(out).resolve()
+    with tempfile.TemporaryDirectory() as profile:
+        subprocess.run([exe, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", f"--window-size={width},{height}",
+                        f"--screenshot={out}", "--hide-scrollbars", Path(page).resolve().as_uri()],
+                       capture_output=True, text=True, timeout=timeout, check=True)
+    return out

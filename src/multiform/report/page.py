@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ..io import write_text
+from ..stats import rate
 
 CSS = """
 body{font-family:Helvetica,Arial,sans-serif;margin:2em auto;max-width:1100px;color:#222;line-height:1.45}
@@ -39,8 +40,57 @@ window.addEventListener('load', function () {
 """
 
 
+class Html(str):
+    """Markup that a table cell shows as it is (everything else is escaped)."""
+
+
+WORDS = {   # how the page names the keys of metrics.json
+    "record_s": "recording the demonstrations", "train_s": "training", "baselines_s": "queueing the baselines",
+    "practice_s": "practice", "evaluate_s": "evaluation", "report_s": "pictures, videos and this page",
+    "total_s": "total", "closed_loop_us_per_sim_ms": "closed loop, µs of wall time per simulated ms (median)",
+    "own_motion_s": "own motion recorded [s]", "rows": "training rows", "n_train": "training rows used",
+    "train_rms_torque_error": "RMS torque error on its training rows, per joint [N m]", "servo": "servo",
+    "residual_gp": "residual GP", "n_inducing": "inducing points", "tracking": "tracking",
+    "velocity_rms": "velocity RMS error", "hold_rms": "hold RMS error", "diverged": "diverged",
+    "ratio": "learned / reference", "learned": "learned", "reference": "the env's controller",
+    "set_condition": "new condition", "add_transition": "new transition", "add_place": "new place",
+    "set_lambda": "new firing probabilities", "lower_lambda": "lower firing probability",
+    "refit_law": "law refitted", "revise_judge": "judge revised", "revert": "revision reverted",
+}
+
+
 def _e(x: Any) -> str:
     return html.escape(str(x))
+
+
+def word(key: str) -> str:
+    """A key of metrics.json (or a revision operator) in the words of the page."""
+    return WORDS.get(key, key.replace("_", " "))
+
+
+def _fmt(v: Any) -> str:
+    """A value as a reader wants to see it: numbers to 4 significant digits, dicts and lists spelled out."""
+    if v is None:
+        return "–"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, dict):
+        return "; ".join(f"{word(k)} ({_fmt(x).replace('; ', ', ')})" if isinstance(x, dict) else f"{word(k)} {_fmt(x)}"
+                         for k, x in v.items())
+    if isinstance(v, (list, tuple)):
+        return ", ".join(_fmt(x) for x in v)
+    return str(v)
+
+
+def _code(name: str) -> str:
+    return f"<code>{_e(name)}</code>"
+
+
+def _named(values: dict[str, Any]) -> Html:
+    """Values keyed by the skill's own names (variables, transitions), the names set as code."""
+    return Html(", ".join(f"{_code(k)} {_e(_fmt(v))}" for k, v in values.items()))
 
 
 def _pct(r: dict[str, Any]) -> str:
@@ -52,19 +102,23 @@ def _img(src: str, alt: str, cls: str = "fig") -> str:
     return f'<img class="{cls}" src="{_e(src)}" alt="{_e(alt)}">'
 
 
-def _table(rows: list[dict[str, Any]], cols: list[tuple[str, str]]) -> str:
+def _p(text: str) -> str:
+    """A paragraph, or nothing for no text (the page has no empty paragraphs)."""
+    return f"<p>{text}</p>" if text.strip() else ""
+
+
+def _table(rows: list[dict[str, Any]], cols: list[tuple[str, str]], cls: str = "") -> str:
     head = "".join(f"<th>{_e(label)}</th>" for _, label in cols)
     body = []
     for r in rows:
         cells = []
         for key, _ in cols:
             v = r.get(key, "")
-            cls = ' class="num"' if isinstance(v, (int, float)) and not isinstance(v, bool) else ""
-            if isinstance(v, float):
-                v = f"{v:.4g}"
-            cells.append(f"<td{cls}>{_e(v)}</td>")
+            num = isinstance(v, (int, float)) and not isinstance(v, bool)
+            text = v if isinstance(v, Html) else _e(_fmt(v))
+            cells.append(f"<td{' class=num' if num else ''}>{text}</td>")
         body.append("<tr>" + "".join(cells) + "</tr>")
-    return f"<table><tr>{head}</tr>{''.join(body)}</table>"
+    return f"<table{f' class={cls}' if cls else ''}><tr>{head}</tr>{''.join(body)}</table>"
 
 
 def _learning(s: dict) -> str:
@@ -81,43 +135,139 @@ def _learning(s: dict) -> str:
     return text + f"; {s.get('robot_seconds', 0):.0f} s of robot time." + (f" Stopped: {stop}." if stop else "")
 
 
+def _practice_summary(s: dict) -> str:
+    """What a repair scenario did, in a sentence."""
+    if "mentor_labelled_trials" in s:
+        return _learning(s)
+    revs = s.get("revisions", [])
+    text = f"{s.get('trials', 0)} trials, {s.get('successes', 0)} successful"
+    if s.get("first_success_trial") is not None:
+        text += f"; the first success was trial {s['first_success_trial']} (trials are numbered from 0)"
+    text += "; " + ("revisions: " + ", ".join(f"version {r['version']} ({word(r['operator'])} of {r['target']}, "
+                                               f"after trial {r['after_trial']})" for r in revs)
+                    if revs else "no revision")
+    if s.get("stop_reason"):
+        text += f"; stopped: {s['stop_reason']}"
+    return text + f"; {s.get('robot_seconds', 0):.0f} s of robot time."
+
+
+def _split(m: dict[str, Any]) -> dict[str, Any]:
+    """Pushed and unpushed rates; for a run whose metrics lack the unpushed split, it is what the
+    overall counts leave after the pushed ones."""
+    pushed, plain = m.get("pushed"), m.get("unpushed")
+    sr = m.get("success_rate")
+    if plain is None and sr is not None:
+        n = sr["trials"] - (pushed["trials"] if pushed else 0)
+        k = sr["successes"] - (pushed["successes"] if pushed else 0)
+        plain = rate(k, n) if n > 0 else None
+    return {"pushed": pushed, "unpushed": plain}
+
+
+def _plot_entry(v: Any) -> dict[str, Any]:
+    return v if isinstance(v, dict) else {"file": v}
+
+
 def build_report(run_dir: str | os.PathLike, metrics: dict[str, Any] | None = None) -> Path:
     """Write ``run_dir/report.html`` from ``metrics`` (default: ``run_dir/metrics.json``)."""
     run = Path(run_dir)
     if metrics is None:
         metrics = json.loads((run / "metrics.json").read_text())
-    m = metrics
-    art = m.get("artifacts", {})
-    parts: list[str] = [f"<h1>multiform — {_e(m.get('skill', ''))}</h1>",
-                        f"<p>{_e(m.get('description', ''))}</p>"]
+    write_text(run / "report.html", page_html(metrics))
+    return run / "report.html"
 
-    rows = []
+
+def page_html(m: dict[str, Any]) -> str:
+    """The report page of a run's metrics (a self-contained HTML document)."""
+    art = m.get("artifacts", {})
+    revisions = m.get("revisions", [])
+    parts: list[str] = [f"<h1>multiform — {_code(m.get('skill', ''))}</h1>", _p(_e(m.get("description", "")))]
+
+    rows: list[tuple[str, str]] = []
     if "demos" in m:
         d = m["demos"]
-        rows.append(("demonstrations", f"{d['count']} by the scripted mentor; mentor's own success "
-                                       f"{_pct(d['mentor_success_rate'])}" if "mentor_success_rate" in d else d))
+        rows.append(("demonstrations", _e(f"{d['count']} by the scripted mentor" + (
+            f"; the mentor's own success {_pct(d['mentor_success_rate'])}" if "mentor_success_rate" in d else ""))))
     if "practice_trials" in m:
-        rows.append(("practice trials", m["practice_trials"]))
-    if "revisions" in m:
-        rows.append(("revisions of the net", len(m["revisions"])))
+        rows.append(("practice trials", _e(m["practice_trials"])))
+    rows.append(("revisions of the net", _e(len(revisions))))
     if "success_rate" in m:
         sr = m["success_rate"]
         ok = "ok" if sr["rate"] >= m.get("target_success_rate", 0.95) else "bad"
-        rows.append(("final success rate", f'<span class="{ok}">{_e(_pct(sr))}</span>'))
+        rows.append(("final success rate (physical check)", f'<span class="{ok}">{_e(_pct(sr))}</span>'
+                     + _e(f"; target {100 * m.get('target_success_rate', 0.95):.0f} %")))
+        split = _split(m)
+        if split["pushed"]:
+            rows.append(("pushed trials", _e(_pct(split["pushed"]))))
+            if split["unpushed"]:
+                rows.append(("trials not pushed", _e(_pct(split["unpushed"]))))
+        else:
+            rows.append(("pushed trials", "none: no evaluation trial of this task was pushed"))
+    if "self_assessed" in m:
+        sa = m["self_assessed"]
+        agree = m.get("agreement_with_physical_check")
+        text = f"{_pct(sa)} of its trials graded successful by its own judges"
+        if agree is not None:
+            text += f"; its verdict agreed with the physical check on {100 * agree:.1f} % of the trials"
+        rows.append(("the robot's own verdict", _e(text)))
     if "timings" in m:
-        rows.append(("wall time", f"{m['timings'].get('total_s', 0):.0f} s"))
+        rows.append(("wall time", _e(f"{m['timings'].get('total_s', 0):.0f} s")))
     parts.append("<h2>Summary</h2><table class='summary'>" + "".join(
-        f"<tr><td>{_e(k)}</td><td>{v if isinstance(v, str) and v.startswith('<span') else _e(v)}</td></tr>"
-        for k, v in rows) + "</table>")
+        f"<tr><td>{_e(k)}</td><td>{v}</td></tr>" for k, v in rows) + "</table>")
+    if m.get("verdicts"):
+        v = m["verdicts"]
+        parts.append("<h3>The robot's verdict against the physical check (evaluation trials)</h3>" + _table(
+            [{"robot": "success", "ok": v["both_success"], "bad": v["robot_only"]},
+             {"robot": "failure", "ok": v["check_only"], "bad": v["both_failure"]}],
+            [("robot", "the robot's judges said"), ("ok", "physical check: success"),
+             ("bad", "physical check: failure")], cls="verdicts"))
 
-    if m.get("revisions"):
+    cfg = m.get("config", {})
+    if cfg:
+        trained_inverse = "inverse_model" in m.get("training", {})
+        conf = [("task", m.get("task", "")), ("skill definition", Html(_code(m.get("skill", "")))), ("seed", cfg.get("seed")),
+                ("multiform version", m.get("version", "not recorded by this run")),
+                ("final net version", m.get("net_version", len(revisions))),
+                ("demonstrations", cfg.get("demos")), ("evaluation trials", cfg.get("eval_trials")),
+                ("ablation trials (the first of the evaluation trials)", cfg.get("ablation_trials")),
+                ("practice trials per scenario at most", cfg.get("practice_max_trials")),
+                ("learning from practice", cfg.get("learn")),
+                ("fraction of evaluation trials pushed", cfg.get("push_fraction") if m.get("pushed") else "none pushed"),
+                ("joints driven by", "the learned auxiliary inverse model" if trained_inverse
+                 else "the env's own servos (no inverse model)"),
+                ("worker processes", cfg.get("workers"))]
+        parts.append("<h2>Configuration</h2>" + _table([{"k": k, "v": v if isinstance(v, Html) else _fmt(v)}
+                                                         for k, v in conf], [("k", "setting"), ("v", "value")]))
+
+    d = m.get("demos")
+    if isinstance(d, dict):
+        parts.append("<h2>Demonstrations</h2>")
+        dur = d.get("duration_s", {})
+        text = f"{d['count']} demonstrations by the scripted mentor in <code>{_e(d.get('file', 'demos.h5'))}</code>"
+        if dur:
+            text += _e(f", {dur['total']:.0f} s in all (each {dur['min']:.1f}–{dur['max']:.1f} s)")
+        if "samples" in d:
+            text += _e(f", {d['samples']} samples")
+        if "mentor_success_rate" in d:
+            text += _e(f"; the mentor succeeded in {_pct(d['mentor_success_rate'])} (its deliberate mistakes included)")
+        parts.append(_p(text + "."))
+        if d.get("samples_per_transition"):
+            parts.append(_table([{"t": Html(_code(t)), "n": n} for t, n in d["samples_per_transition"].items()],
+                                [("t", "transition the mentor tagged"), ("n", "samples")]))
+
+    if revisions:
         parts.append("<h2>How the robot revised the definition</h2>")
-        parts.append(_table(m["revisions"], [("version", "version"), ("scenario", "scenario"),
-                                             ("after_trial", "after trial"), ("operator", "operator"),
-                                             ("target", "target"), ("reason", "reason")]))
+        titles = {k: s.get("title", k) for k, s in m.get("scenarios", {}).items()}
+        parts.append(_table([{**r, "operator": word(r["operator"]), "target": Html(_code(r["target"])),
+                              "scenario": titles.get(r.get("scenario")) or Html(_code(r.get("scenario", "")))}
+                             for r in revisions],
+                            [("version", "version"), ("scenario", "practice scenario"),
+                             ("after_trial", "after trial"), ("operator", "change"), ("target", "of"),
+                             ("reason", "why (the evidence from the traces)")]))
     nets = art.get("nets", [])
     if nets:
-        parts.append("<h2>The net before and after each revision</h2><div class='nets'>")
+        head = ("The net before and after each revision" if revisions
+                else "The net as the mentor wrote it (practice revised nothing)")
+        parts.append(f"<h2>{_e(head)}</h2><div class='nets'>")
         for n in nets:
             parts.append(f"<figure>{_img(n['file'], n['caption'])}<figcaption>{_e(n['caption'])}</figcaption></figure>")
         parts.append("</div>")
@@ -126,43 +276,94 @@ def build_report(run_dir: str | os.PathLike, metrics: dict[str, Any] | None = No
     if scen:
         parts.append("<h2>Practice scenarios</h2>")
         for key, s in scen.items():
-            parts.append(f"<h3>{_e(s.get('title', key))}</h3><p>{_e(s.get('summary', '') or _learning(s))}</p>")
+            parts.append(f"<h3>{_e(s.get('title', key))}</h3>" + _p(_e(s.get("summary", "") or _practice_summary(s))))
             if s.get("plot"):
-                parts.append(_img(s["plot"], f"practice {key}"))
+                parts.append(_img(s["plot"], f"practice {s.get('title', key)}"))
+                parts.append(_p("Each dot is a trial, numbered from 0 as in the practice log; an orange line "
+                                "stands just before the first trial that ran the revised net."
+                                if s.get("revisions") else "Each dot is a trial, numbered from 0 as in the practice log."))
     plots = art.get("plots", {})
-    for key, label in (("success_trial", "A successful trial (motion variables, transitions marked — cf. the paper's Fig. 7)"),
-                       ("recovery_trial", "Recovery from a push: the added transition backs up to swing-up"),
-                       ("evaluation", "Evaluation and ablations")):
-        if key in plots:
-            parts.append(f"<h2>{_e(label)}</h2>{_img(plots[key], label)}")
+    for key in ("success_trial", "recovery_trial"):
+        if key not in plots:
+            continue
+        e = _plot_entry(plots[key])
+        caption = e.get("caption", "a successful trial" if key == "success_trial" else "recovery from a push")
+        fig = f" (cf. the paper's {e['figure']})" if e.get("figure") else ""
+        parts.append(f"<h2>{_e(caption[0].upper() + caption[1:])}</h2>{_img(e['file'], caption)}")
+        text = f"Motion variables and commands, the token's place shaded, every firing labelled{fig}."
+        if e.get("fired"):
+            text += " Fired in order: " + " ".join(_code(t) for t in e["fired"]) + "."
+        if e.get("push_time") is not None:
+            text += _e(f" The experimenter pushed at {e['push_time']:.2f} s (dashed line).")
+        parts.append(_p(text))
     if m.get("ablation"):
-        parts.append("<h2>Ablations (same seeds, same demonstrations)</h2>")
-        rows = [{**r, "success": _pct(r)} for r in m["ablation"]]
-        parts.append(_table(rows, [("name", "variant"), ("success", "success rate"), ("notes", "what it lacks")]))
+        parts.append("<h2>Evaluation and ablations (same seeds, same demonstrations)</h2>")
+        if "evaluation" in plots:
+            parts.append(_img(_plot_entry(plots["evaluation"])["file"], "success over the evaluation trials"))
+        rows2 = [{**r, "success": _pct(r)} for r in m["ablation"]]
+        if not revisions and rows2 and rows2[0].get("notes") == "the robot's revised net":
+            rows2[0]["notes"] = "the mentor's net: practice revised nothing"
+        parts.append(_table(rows2, [("name", "variant"), ("success", "success rate"), ("notes", "what it lacks")]))
+    views = art.get("views", {})
+    if views:
+        parts.append("<h2>Recordings for rerun's viewer</h2>")
+        parts.append(_p("Open one with <code>rerun FILE</code> (or drop it on the web viewer): the state and commands "
+                        "over time, the net with its marking at each firing, the scene, pushes, clips and grades."))
+        parts.append("<ul>" + "".join(f"<li><a href='{_e(v['file'])}'>{_e(v['file'])}</a>: {_e(v['caption'])}</li>"
+                                      for v in views.values()) + "</ul>")
     vids = art.get("videos", {})
     if vids:
         parts.append("<h2>Videos</h2>")
+        pushed = any(_plot_entry(v).get("push_time") is not None for v in plots.values())
+        parts.append(_p("Each frame shows the time, the place the token is in and the transition being executed"
+                        + (", and for 0.6 s from it, the push." if pushed else ".")))
         for key, v in vids.items():
             parts.append(f"<h3>{_e(v.get('caption', key))}</h3><video controls muted src='{_e(v['file'])}'></video>")
     tr = m.get("training", {})
     if tr.get("laws"):
         parts.append("<h2>Laws learned from demonstration</h2>")
-        parts.append(_table([{"law": k, **v} for k, v in tr["laws"].items()],
-                            [("law", "law"), ("n", "training samples"), ("mode", "GP"), ("heldout_nrmse", "held-out NRMSE"),
-                             ("length_scales", "length scales"), ("signal_std", "σf"), ("noise_std", "σn")]))
+        laws = []
+        worse = []
+        for k, v in tr["laws"].items():
+            nrmse = v.get("heldout_nrmse")
+            note = ""
+            if nrmse is not None and nrmse > 1:
+                note = "worse than predicting the mean command"
+                worse.append(k)
+            laws.append({**v, "law": Html(_code(k)), "length_scales": _named(v.get("length_scales", {})),
+                         "mode": "sparse (inducing points)" if v.get("mode") == "sparse" else "exact", "note": note})
+        parts.append(_table(laws, [("law", "law"), ("n", "training samples"), ("mode", "GP"),
+                                   ("heldout_nrmse", "held-out NRMSE"), ("note", "note"),
+                                   ("length_scales", "length scales"), ("signal_std", "σf"), ("noise_std", "σn")]))
+        if worse:
+            parts.append(_p(
+                "NRMSE is the held-out error divided by the spread of the commands; above 1 the law predicts the "
+                "mentor's commands on unseen demonstrations worse than their mean would. "
+                + " ".join(_code(w) for w in worse)
+                + (" is" if len(worse) == 1 else " are")
+                + " such a law: the skill works through the net's closed loop, not through imitation accuracy, "
+                  "and a law this loose is the first place to look when its sub-procedure fails."))
     if tr.get("judges"):
         parts.append("<h2>Judges learned from evaluation</h2>")
-        parts.append(_table([{"place": k, **v} for k, v in tr["judges"].items()],
-                            [("place", "place"), ("kernel", "chosen kernel"), ("cv_score", "CV accuracy"),
-                             ("heldout_accuracy", "held-out accuracy"), ("segments", "labelled segments")]))
+        judges = []
+        for k, v in tr["judges"].items():
+            n, acc = v.get("heldout_segments"), v.get("heldout_accuracy")
+            held = "–" if acc is None else (f"{round(acc * n)}/{n} ({100 * acc:.0f} %)" if n else f"{100 * acc:.1f} %")
+            cv = v.get("cv_score")
+            judges.append({"place": Html(_code(k)), "kernel": v.get("kernel", ""),
+                           "cv": "–" if cv is None else f"{100 * cv:.1f} %", "held": held,
+                           "segments": v.get("segments"), "success": v.get("success_labels")})
+        parts.append(_table(judges, [("place", "place"), ("kernel", "chosen kernel"), ("cv", "cross-validated accuracy"),
+                                     ("held", "held-out segments right"), ("segments", "labelled segments"),
+                                     ("success", "of them success")]))
     if tr.get("inverse_model"):
         parts.append("<h2>The auxiliary inverse model</h2>")
-        parts.append(_table([tr["inverse_model"]], [(k, k) for k in tr["inverse_model"]]))
+        parts.append(_table([{"k": word(k), "v": Html(_code(v)) if isinstance(v, str) else v}
+                             for k, v in tr["inverse_model"].items()],
+                            [("k", "quantity"), ("v", "value")]))
     if "timings" in m:
-        parts.append("<h2>Timings</h2>" + _table([m["timings"]], [(k, k) for k in m["timings"]]))
-    body = "\n".join(parts)
-    page = (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>multiform — {_e(m.get('skill', ''))}</title>"
+        parts.append("<h2>Timings</h2>" + _table([{"k": word(k), "v": v} for k, v in m["timings"].items()],
+                                                   [("k", "stage"), ("v", "seconds")]))
+    body = "\n".join(x for x in parts if x)
+    return (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>multiform — {_e(m.get('skill', ''))}</title>"
             f"<style>{CSS}</style>{CHECK}</head><body>{body}</body></html>\n")
-    out = run / "report.html"
-    write_text(out, page)
-    return out

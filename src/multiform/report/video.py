@@ -9,6 +9,7 @@ episode by replaying its commands from its seed.
 
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
@@ -125,6 +126,54 @@ def episode_video(env: gym.Env, episode: Episode, path: str | os.PathLike, fps: 
     every = max(1, int(round(1.0 / (fps * episode.dt))))
     _, snaps = replay(env, episode, qpos_every=every)
     return write_mp4(render_qpos(env, snaps, camera, width, height), path, fps=1.0 / (every * episode.dt))
+
+
+def frame_labels(trace: Any, every: int, count: int, push_time: float | None = None,
+                 push_shown: float = 0.6) -> list[list[str]]:
+    """The overlay lines of ``count`` frames taken every ``every`` ticks of ``trace``: the time, the
+    marked place(s), the transition being executed, and "PUSH" for ``push_shown`` s from the push."""
+    tags = trace.tags()
+    out = []
+    for i in range(count):
+        k = min(i * every, trace.num_ticks - 1)
+        t = k * trace.dt
+        places = [p for p, n in zip(trace.place_ids, trace.marking[k]) if n > 0]
+        lines = [f"t = {t:6.2f} s", f"place: {', '.join(places) or '-'}", f"transition: {tags[k] or '-'}"]
+        if push_time is not None and push_time <= t < push_time + push_shown:
+            lines.append("PUSH")
+        out.append(lines)
+    return out
+
+
+@functools.lru_cache(maxsize=4)
+def _font(size: int) -> Any:
+    from PIL import ImageFont
+    return ImageFont.load_default(size=size)
+
+
+def draw_lines(frame: np.ndarray, lines: Sequence[str]) -> np.ndarray:
+    """``frame`` with ``lines`` written in its top-left corner on a dark band (Pillow's bitmap font);
+    a line reading "PUSH" is drawn in red."""
+    from PIL import Image, ImageDraw
+    img = Image.fromarray(np.ascontiguousarray(frame))
+    draw = ImageDraw.Draw(img)
+    font = _font(max(11, frame.shape[0] // 28))
+    y = 4
+    for line in lines:
+        box = draw.textbbox((6, y), line, font=font)
+        draw.rectangle((box[0] - 3, box[1] - 2, box[2] + 3, box[3] + 2), fill=(0, 0, 0))
+        draw.text((6, y), line, font=font, fill=(255, 80, 80) if line == "PUSH" else (255, 255, 255))
+        y = box[3] + 5
+    return np.asarray(img)
+
+
+def overlay_frames(frames: Iterable[np.ndarray], trace: Any, push_time: float | None = None) -> Iterator[np.ndarray]:
+    """Frames of a trial (one per ``trace.qpos_every`` ticks) with :func:`frame_labels` drawn on each."""
+    every = max(1, int(trace.qpos_every))
+    count = int(np.ceil(trace.num_ticks / every))
+    labels = frame_labels(trace, every, count, push_time)
+    for i, frame in enumerate(frames):
+        yield draw_lines(frame, labels[min(i, count - 1)])
 
 
 def frames_of(env: gym.Env, qpos: Sequence[np.ndarray], **kw: Any) -> list[np.ndarray]:

@@ -54,6 +54,19 @@ class Perturbation(Protocol):
     def __call__(self, tick: int, runner: NetRunner, env: gym.Env) -> None: ...
 
 
+class Observer(Protocol):
+    """Watches a trial as it runs (e.g. :class:`multiform.view.stream.TrialStream`); reads what it is
+    given and changes nothing, so a trial runs the same with and without one."""
+
+    def start(self, executor: Executor, seed: int) -> None: ...
+
+    def fired(self, tick: int, runner: NetRunner) -> None: ...
+
+    def tick(self, tick: int, values: list[float], command: list[float], info: Mapping[str, Any]) -> None: ...
+
+    def end(self, trace: Trace) -> None: ...
+
+
 class Executor:
     """Runs trials of one net version with its laws on one env.
 
@@ -101,28 +114,34 @@ class Executor:
         self.saturator = Saturator(apn.safety, self.cmd_names, slots, self.dt, torque_low, torque_high)
 
     def run(self, seed: int, options: Mapping[str, Any] | None = None, max_duration: float | None = None,
-            qpos_every: int = 0, perturb: Perturbation | None = None) -> Trace:
+            qpos_every: int = 0, perturb: Perturbation | None = None, observer: Observer | None = None) -> Trace:
         """One trial from the initial marking.
 
         ``qpos_every`` > 0 keeps simulator poses every that many ticks for a video. ``perturb`` is
         the experimenter's hand (e.g. a push when the skill has balanced for a while): called every
-        tick with the tick, the net's runner and the env, before the env steps.
+        tick with the tick, the net's runner and the env, before the env steps. ``observer`` is told
+        of the start, each firing, each stepped tick (after the step) and the finished trace.
 
         The cyclic garbage collector is paused for the trial: the tick allocates small arrays that
         reference counting frees, and a collection pass in the middle of a 1 ms tick is a latency
         spike the loop has no use for.
         """
         with _gc_paused():
-            return self._run(seed, options, max_duration, qpos_every, perturb)
+            trace = self._run(seed, options, max_duration, qpos_every, perturb, observer)
+        if observer is not None:
+            observer.end(trace)
+        return trace
 
     def _run(self, seed: int, options: Mapping[str, Any] | None, max_duration: float | None,
-             qpos_every: int, perturb: Perturbation | None) -> Trace:
+             qpos_every: int, perturb: Perturbation | None, observer: Observer | None = None) -> Trace:
         env, runner, sat = self.env, self.runner, self.saturator
         runner.rng = np.random.default_rng([seed, 2])
         runner.reset()
         sat.reset()
         wall0 = _time.perf_counter()
         obs, info = env.reset(seed=seed, options=dict(options) if options else None)
+        if observer is not None:
+            observer.start(self, seed)
         n_ticks = int(round((max_duration or self.apn.max_duration) / self.dt)) + 1
         n_obs, n_cmd, n_val = len(self.obs_names), len(self.cmd_names), len(self._value_names)
         n_places = len(self.apn.places)
@@ -152,6 +171,8 @@ class Executor:
                 break
             if runner.tick(olist, t):
                 marks.append((k, list(runner.marking)))
+                if observer is not None:
+                    observer.fired(k, runner)
             values = runner.values
             rec_obs[k] = obs
             slot_rows.append(values[:])
@@ -195,6 +216,8 @@ class Executor:
             if perturb is not None:
                 perturb(k, runner, env)
             obs, _, terminated, truncated, info = env.step(action)
+            if observer is not None:
+                observer.tick(k, values, cmd, info)
             if terminated:
                 if info.get("non_finite"):
                     outcome, fault = "fault", "simulator state (non-finite; the simulator reset)"

@@ -33,6 +33,10 @@ DESCRIPTION = ("A hand on a fast 6-DoF base (MuJoCo) learns to flip a nunchaku �
                "rolling over the back of the palm, regrasp of the other rod with a magnet palm — from a scripted "
                "mentor's demonstrations and labels, sensing the free rod only through the wrist load.")
 TARGET_SUCCESS_RATE = 0.8
+REPORT = {          # the report's words for this task's pictures (the paper's figure numbers)
+    "motion_figure": "Fig. 11",
+    "success_trial": "a successful flip: swing-up, release, the chain over the back of the hand, regrasp",
+}
 PLOT_VARIABLES = [("phi", "φ est. [rad]"), ("omega", "ω est. [rad/s]"), ("hand_q", "wrist q [rad]"),
                   ("hand_x", "hand x [m]"), ("touch", "back touch [N]"), ("grip", "grip")]
 

@@ -104,6 +104,11 @@ DEMOS = 40                         # the main job's demonstrations. With 80 the 
 DESCRIPTION = ("A 6-axis arm (AUBO i5 kinematics, MuJoCo) learns to swing up and balance an inverted pendulum "
                "from a scripted mentor's joystick demonstrations, labels and over-strict definition.")
 TARGET_SUCCESS_RATE = 0.95
+REPORT = {          # the report's words for this task's pictures (the paper's figure numbers)
+    "motion_figure": "Fig. 7",
+    "success_trial": "a successful trial of the learned skill: start (t0), swing-up repeated (t2), switch to balancing (t1)",
+    "recovery_trial": "pushed while balancing: the added transition backs up to swing-up, then balances again",
+}
 PLOT_VARIABLES = [("theta", "θ [rad]"), ("omega", "ω [rad/s]"), ("x", "x [m]"), ("xdot", "ẋ [m/s]")]
 
 
