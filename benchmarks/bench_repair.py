@@ -226,7 +226,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", default="bench_repair_out", help="working folder and results.json")
     p.add_argument("--kinds", default="all", help="comma-separated kinds (and 'none' for the sound skill), or all")
     p.add_argument("--strengths", default="all",
-                   help="comma-separated indices into each kind's strengths (0 = the first), or all")
+                   help="comma-separated indices into each kind's strengths (0 = the first, -1 = the last), or all")
     p.add_argument("--seeds", default="0", help="comma-separated practice/evaluation seeds")
     p.add_argument("--max-trials", type=int, default=30)
     p.add_argument("--eval-trials", type=int, default=100)
@@ -254,7 +254,7 @@ def main(argv: list[str] | None = None) -> int:
         for k in KINDS:
             if k.task == task and (wanted is None or k.name in wanted):
                 for i, s in enumerate(k.strengths):
-                    if idx is None or i in idx:
+                    if idx is None or i in idx or i - len(k.strengths) in idx:
                         jobs.append((task, k, s))
     for seed in [int(s) for s in a.seeds.split(",")]:
         for task, kind, s in jobs:

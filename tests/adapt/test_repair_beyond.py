@@ -83,7 +83,7 @@ def test_conditions_are_held_against_where_the_mentor_switched(t1, hit, loose):
     fit = ev.conditions["t1"]
     assert fit.switches == 4 and fit.hit == hit
     assert fit.loose == pytest.approx(loose, abs=0.02)
-    assert ev.took_success == {"t0": 4, "t2": 4, "t1": 4, "t3": 4} and ev.took_failure == {}
+    assert ev.took_success == {"t0": 4, "t2": 4, "t1": 4, "t3": 4, "t6": 4} and ev.took_failure == {}
     assert ev.stay_seconds == {"P1": pytest.approx(2.0), "P2": pytest.approx(1.0)}
 
 
@@ -151,10 +151,12 @@ def test_a_repeat_limit_that_ends_trials_the_mentor_kept_going_is_moved():
     apn = edited(t4={"condition": "fires_t2 >= 1"})
     mentor = mentor_evidence(apn, EPISODES)                     # the mentor's swing-ups lasted 2 s
     fir = [(0, "t0"), (50, "t2"), (51, "t4")]                   # the robot gave up after 0.51 s
-    tr = [make_trace(apn, fir, vals(60), "failure") for _ in range(3)]
+    tr = [make_trace(apn, fir, vals(60), "failure", enabled={"t1": 50}, held={"t1": 0}) for _ in range(3)]
     d = diagnose(apn, tr, mentor=mentor)
     (f,) = [f for f in d.findings if f.kind == "limit_too_tight"]
     assert f.transition == "t4" and f.condition == "fires_t2 >= 5"       # ceil(1 * 1.25 * 2.0 / 0.51)
+    # t1 never held, but it holds where the mentor switched: the trials ended before it could
+    assert "t1" in d.never_held and [c.key for c in candidates(apn, d, FakeLearners(mentor))] == ["limit_too_tight:t4"]
     r = repair(apn, d, FakeLearners(mentor))
     assert r.key == "limit_too_tight:t4" and str(r.apn.transition("t4").condition) == "fires_t2 >= 5"
 

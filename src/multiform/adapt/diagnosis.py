@@ -67,6 +67,7 @@ class Diagnosis:
     exits: list[Exit] = field(default_factory=list)
     outcomes: Counter = field(default_factory=Counter)
     findings: list[Finding] = field(default_factory=list)   # where the robot and the mentor disagree
+    mentor_fits: dict[str, dict[str, Any]] = field(default_factory=dict)   # conditions vs the mentor's switches
     visited: set[str] = field(default_factory=set)          # places reached in the failed trials
 
     def to_json(self) -> dict[str, Any]:
@@ -133,6 +134,7 @@ def diagnose(apn: APN, traces: Sequence[Trace], region_scores: RegionScorer | No
     d.visited = visited - set(apn.final_places)
     if mentor is not None:
         d.findings = compare_with_mentor(apn, traces, mentor, succeeded_fired)
+        d.mentor_fits = {t: fit.to_json() for t, fit in mentor.conditions.items()}
     return d
 
 

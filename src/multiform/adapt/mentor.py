@@ -3,9 +3,10 @@
 Read off the labelled demonstrations through the net (:mod:`multiform.learn.views`):
 
 * per transition, how often the mentor switched into it in segments it labelled success and in
-  segments it labelled failure;
+  segments it labelled failure (a stop into success the mentor never tags counts as taken by each
+  successful demonstration that ends in its place);
 * per transition with a hand-written condition over state variables (the state part of it; repeats
-  of the running maneuver left out), where that condition holds
+  of the running maneuver and rules into final places left out), where that condition holds
   against where the mentor switched: at the moments of its successful switches (``hit``; a condition
   true at few of them is too strict) and on the states of the maneuver before, far from any switch
   (``loose``; a condition true at many of those fires where the mentor chose not to switch);
@@ -137,13 +138,20 @@ def mentor_evidence(apn: APN, episodes: Sequence[Episode], min_switches: int = 3
             if tag in apn.transition_ids:
                 bucket = ev.took_success if ok[s] else ev.took_failure
                 bucket[tag] = bucket.get(tag, 0) + 1
-        for s, e, p in stays(apn, ep.transitions):
+        placed = stays(apn, ep.transitions)
+        for s, e, p in placed:
             if ok[s:e].all():
                 ev.stay_seconds[p] = max(ev.stay_seconds.get(p, 0.0), (e - s) * ep.dt)
+        if ep.outcome == "success" and placed:
+            # a stop into success the mentor never tags is taken where its successful demonstrations end
+            for t in apn.transitions:
+                if placed[-1][2] in t.inputs and any(apn.place(q).final == "success" for q in t.outputs) \
+                        and not (ep.transitions == t.id).any():
+                    ev.took_success[t.id] = ev.took_success.get(t.id, 0) + 1
     state = set(apn.variables) | set(apn.derived)
     for t in apn.transitions:
-        if _is_repeat(apn, t.id):
-            continue
+        if _is_repeat(apn, t.id) or any(apn.place(p).final for p in t.outputs):
+            continue                # repeats and stop/give-up rules: held against timing, not switches
         g = _state_part(t.condition.guard, state)
         if g is None or ev.took_success.get(t.id, 0) < min_switches:
             continue

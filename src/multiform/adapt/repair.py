@@ -40,7 +40,7 @@ from typing import Any, Protocol
 
 from ..petri.net import APN
 from ..petri.revision import Revision, add_place, add_transition, set_condition, set_lambda
-from .compare import Finding
+from .compare import STRICT, Finding
 from .diagnosis import Diagnosis
 from .mentor import MentorEvidence
 
@@ -282,9 +282,11 @@ def candidates(apn: APN, d: Diagnosis, learners: Learners, exhausted: frozenset[
     for kind in ("too_strict", "too_loose"):
         for f in by_kind.get(kind, []):
             add(f"{kind}:{f.transition}", "condition", lambda f=f: relearn_from_mentor(apn, f, learners))
+    # a condition that never held but holds where the mentor switched is not what is wrong
+    fine = {t for t, fit in d.mentor_fits.items() if fit["holds_at_mentor_switches"] >= STRICT}
     strict = {f.transition for f in by_kind.get("too_strict", [])}
     for tid in d.never_held:
-        if tid not in strict:
+        if tid not in strict and tid not in fine:
             add(f"never_held:{tid}", "condition", lambda: relearn_condition(apn, d, learners))
             break
     for kind in ("limit_too_tight", "stop_too_late"):
