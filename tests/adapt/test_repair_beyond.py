@@ -261,3 +261,18 @@ def test_a_candidate_is_never_tried_twice(tmp_path):
     practice._repair(state)
     assert [r.operator for r in model.history.revisions()] == ["set_condition", "revert"]
     assert state.revisions[-1]["operator"] == "none" and "dead_branch:t8" in state.revisions[-1]["reason"]
+
+
+def test_a_stop_with_no_weight_is_starved_though_the_mentor_never_tagged_it():
+    """The mentor's demonstrations end balanced without tagging the stop t6: each successful one that
+    ends in P2 counts as taking it."""
+    apn = edited(t6={"lambda": 0.0})
+    mentor = mentor_evidence(apn, EPISODES)
+    tr = [make_trace(apn, [(0, "t0"), (40, "t1")], vals(400, 0.05), "timeout", enabled={"t6": 360}, held={"t6": 300})
+          for _ in range(3)]
+    d = diagnose(apn, tr, mentor=mentor)
+    assert ("starved", "t6") in [(f.kind, f.transition) for f in d.findings]
+    # λ first: the least change to the mentor's definition (the stop's 5.5 s also exceeds these
+    # short demonstrations' 1 s, a limit candidate for later)
+    assert [c.key for c in candidates(apn, d, FakeLearners(mentor))] == ["starved:t6", "stop_too_late:t6"]
+    assert repair(apn, d, FakeLearners(mentor)).apn.transition("t6").lam == pytest.approx(2.0 / 3.0)   # t3, t5, t6
