@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ..petri.guard import to_text
+from ..petri.guard import parse_guard, to_text
 from ..petri.net import APN
 from ..runtime.trace import Trace
 from .mentor import MentorEvidence, is_clock
@@ -222,9 +222,9 @@ def _with_constant(atom: tuple, value: float) -> tuple:
 
 
 def _eval(tree: tuple, env: dict[str, float]) -> float:
-    from ..petri.guard import _vector
-    with np.errstate(all="ignore"):
-        return float(np.asarray(_vector(tree, {k: np.array([v]) for k, v in env.items()})).reshape(-1)[0])
+    """A guard subtree's value at one state."""
+    g = parse_guard(to_text(tree))
+    return float(g.evaluate_arrays({k: np.array([env[k]]) for k in g.variables})[0])
 
 
 def _vars(tree: tuple) -> set[str]:

@@ -70,8 +70,9 @@ class MentorEvidence:
     def stay_range(self, apn: APN, place: str, guard_tree: tuple) -> tuple[float, float] | None:
         """The range of a state expression (a guard subtree) over the mentor's successful stays in
         ``place``; None if the mentor never stayed there successfully."""
-        from ..petri.guard import _vector
-        names = sorted(_tree_variables(guard_tree))
+        from ..petri.guard import parse_guard, to_text
+        g = parse_guard(to_text(guard_tree))
+        names = sorted(g.variables)
         lo, hi, seen = np.inf, -np.inf, False
         for ep in self.episodes:
             V = value_matrix(apn, ep, names)
@@ -79,9 +80,7 @@ class MentorEvidence:
             for s, e, p in stays(apn, ep.transitions):
                 if p != place or not ok[s:e].all():
                     continue
-                with np.errstate(all="ignore"):
-                    v = np.broadcast_to(np.asarray(_vector(guard_tree, {n: V[s:e, i] for i, n in enumerate(names)}),
-                                                   dtype=float), (e - s,))
+                v = g.evaluate_arrays({n: V[s:e, i] for i, n in enumerate(names)})
                 v = v[np.isfinite(v)]
                 if len(v):
                     lo, hi, seen = min(lo, float(v.min())), max(hi, float(v.max())), True

@@ -31,12 +31,13 @@ an uninterrupted one see the same trials.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
+
+from scipy.special import expit
 
 from ..demos.episode import Episode, SegmentLabel
 from ..io import read_json, write_json
@@ -452,7 +453,7 @@ class Practice:
         leave = None
         if regions is not None:
             self.learners.include_own_stays(list(kept.values()))
-            leave = {p: float(1.0 / (1.0 + math.exp(-z))) for p, z in self.learners.leave_floors().items()}
+            leave = {p: float(expit(z)) for p, z in self.learners.leave_floors().items()}   # no overflow at -inf
 
         def diagnosis(net: APN, trials: list[int]) -> Any:
             ok = [t["fired"] for t in state.trials if t["success"] and t["trial"] in set(trials)]
