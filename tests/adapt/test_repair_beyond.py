@@ -176,9 +176,13 @@ def test_a_fall_angle_inside_what_the_mentor_balanced_through_is_moved_beyond_it
 def test_a_stop_asking_for_longer_than_the_mentor_ever_held_is_moved_to_the_mentors_timing():
     apn = edited(t6={"condition": "dwell > 40 and abs(theta) < 0.25"})
     mentor = mentor_evidence(apn, EPISODES)
-    tr = [make_trace(apn, [(0, "t0"), (40, "t1")], vals(400, 0.05), "timeout") for _ in range(3)]
-    (f,) = diagnose(apn, tr, mentor=mentor).findings
+    tr = [make_trace(apn, [(0, "t0"), (40, "t1")], vals(400, 0.05), "timeout", enabled={"t6": 360}, held={"t6": 0})
+          for _ in range(3)]
+    d = diagnose(apn, tr, mentor=mentor)
+    (f,) = d.findings
     assert f.kind == "stop_too_late" and f.condition == "(dwell > 1) and (abs(theta) < 0.25)"
+    # it never held, but its clock is what is wrong: not relearned from switches (which would stop early)
+    assert "t6" in d.never_held and [c.key for c in candidates(apn, d, FakeLearners(mentor))] == ["stop_too_late:t6"]
 
 
 def test_trials_that_ended_outside_the_net_are_no_evidence():

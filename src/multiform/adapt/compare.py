@@ -103,12 +103,13 @@ def _stay(tr: Trace, place: str, tick: int) -> float:
 
 
 def _values_at(apn: APN, tr: Trace, tick: int, dwell_place: str | None) -> dict[str, float]:
-    """Every condition variable at ``tick`` as the net saw it before firing there."""
-    tick = min(tick, tr.num_ticks - 1)
-    env = {n: float(v) for n, v in zip(tr.value_names, tr.values[tick])}
+    """Every condition variable as the net saw it when it fired at ``tick``: the recorded row of the
+    tick before (the row of the firing tick holds the clocks after the firing), the counts before it."""
+    row = max(0, min(tick, tr.num_ticks) - 1)
+    env = {n: float(v) for n, v in zip(tr.value_names, tr.values[row])}
     env["time"] = tick * tr.dt
     for p in tr.place_ids:
-        env[f"dwell_{p}"] = float(tr.dwell[tick, tr.place_ids.index(p)])
+        env[f"dwell_{p}"] = float(tr.dwell[row, tr.place_ids.index(p)]) + (tick - row) * tr.dt
     if dwell_place is not None:
         env["dwell"] = env.get(f"dwell_{dwell_place}", 0.0)
     for t in apn.transition_ids:

@@ -119,9 +119,11 @@ def adjust_lambda(apn: APN, d: Diagnosis, factor: float = 0.5, exhausted: frozen
     return None
 
 
-def relearn_condition(apn: APN, d: Diagnosis, learners: Learners) -> Repair | None:
-    """Operator 2."""
+def relearn_condition(apn: APN, d: Diagnosis, learners: Learners, only: str | None = None) -> Repair | None:
+    """Operator 2 (on ``only``, if given)."""
     for tid in d.never_held:
+        if only is not None and tid != only:
+            continue
         if tid not in d.never_fired:
             continue
         t = apn.transition(tid)
@@ -284,11 +286,11 @@ def candidates(apn: APN, d: Diagnosis, learners: Learners, exhausted: frozenset[
             add(f"{kind}:{f.transition}", "condition", lambda f=f: relearn_from_mentor(apn, f, learners))
     # a condition that never held but holds where the mentor switched is not what is wrong
     fine = {t for t, fit in d.mentor_fits.items() if fit["holds_at_mentor_switches"] >= STRICT}
+    fine |= {f.transition for f in by_kind.get("stop_too_late", [])}     # its clock is what is wrong
     strict = {f.transition for f in by_kind.get("too_strict", [])}
     for tid in d.never_held:
         if tid not in strict and tid not in fine:
-            add(f"never_held:{tid}", "condition", lambda: relearn_condition(apn, d, learners))
-            break
+            add(f"never_held:{tid}", "condition", lambda tid=tid: relearn_condition(apn, d, learners, only=tid))
     for kind in ("limit_too_tight", "stop_too_late"):
         for f in by_kind.get(kind, []):
             add(f"{kind}:{f.transition}", "limit", lambda f=f: move_limit(apn, f))
