@@ -280,3 +280,17 @@ def test_a_stop_with_no_weight_is_starved_though_the_mentor_never_tagged_it():
     # short demonstrations' 1 s, a limit candidate for later)
     assert [c.key for c in candidates(apn, d, FakeLearners(mentor))] == ["starved:t6", "stop_too_late:t6"]
     assert repair(apn, d, FakeLearners(mentor)).apn.transition("t6").lam == pytest.approx(2.0 / 3.0)   # t3, t5, t6
+
+
+def test_a_clock_limit_is_read_as_the_net_saw_it_before_firing():
+    """The recorded row of a firing tick holds the clocks after the firing; the limit is judged on
+    the clock the condition read."""
+    apn = edited(t5={"condition": "dwell > 0.15"})
+    mentor = mentor_evidence(apn, EPISODES)                      # the mentor's balance lasted 1 s
+    tr = []
+    for _ in range(3):
+        t = make_trace(apn, [(0, "t0"), (40, "t1"), (70, "t5")], vals(71, 0.05), "failure")
+        t.dwell[40:70, apn.place_ids.index("P2")] = np.arange(30) * t.dt
+        tr.append(t)
+    (f,) = [f for f in diagnose(apn, tr, mentor=mentor).findings if f.kind == "limit_too_tight"]
+    assert f.condition == "dwell > 0.625"                        # 0.15 * 1.25 * 1.0 s / 0.3 s
