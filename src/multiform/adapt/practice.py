@@ -31,6 +31,7 @@ an uninterrupted one see the same trials.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field, replace
