@@ -63,6 +63,25 @@ def _positive(text: str) -> float:
     return v
 
 
+def _fraction(text: str) -> float:
+    """An argparse type: a number in 0..1."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0.0 <= v <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be in 0..1, got {text}")
+    return v
+
+
+def _add_ray(p: argparse.ArgumentParser) -> None:
+    """``--ray ADDRESS``: run the independent trials or demonstrations as Ray tasks."""
+    p.add_argument("--ray", metavar="ADDRESS", default=None,
+                   help="run the trials as Ray tasks (pip install 'multiform[ray]'): 'auto' joins the cluster this "
+                        "machine belongs to, 'local' starts one here with --workers CPUs, or HOST:PORT / "
+                        "ray://HOST:PORT; --workers then counts nothing else")
+
+
 def _default_output(name: str, suffix: str) -> Path:
     """A default output file in the current folder, named for ``name`` (a net's name, which comes
     from a file and may hold a path): only its base name, in safe characters."""
@@ -169,7 +188,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     with exclusive(out):
         with _bar(len(seeds), f"recording {args.task} demos") as bar:
             eps = record_many(args.task, seeds, task.DEMO_ENV_KWARGS, workers=args.workers,
-                              progress=lambda i, n: bar.update(1))
+                              progress=lambda i, n: bar.update(1), ray=args.ray)
         write_dataset(out, eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)
     ok = sum(e.outcome == "success" for e in eps)
     print(f"wrote {out}: {len(eps)} demos, the mentor succeeded in {ok} ({100 * ok / len(eps):.0f} %)")
@@ -333,12 +352,41 @@ def cmd_practice(args: argparse.Namespace) -> int:
     return 1 if state.stop_reason.startswith("fault") else 0
 
 
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from .adapt.evaluation import Variant, evaluate
+    from .io import write_json
+    from .lock import check_writable
+    from .model import SkillModel
+    from .tasks import get_task, task_for_env
+    model = SkillModel(args.model, env_modules=args.env_module)
+    name = args.task or task_for_env(model.manifest["env"])
+    task = get_task(name)
+    if args.version is not None:
+        model.history.version(args.version)          # refuses a version the model does not have
+    model.verify()
+    if args.out:
+        check_writable(args.out)
+    specs = task.evaluation_specs(args.trials, args.seed, args.push_fraction)
+    variant = Variant(f"{model.apn.name} v{model.version if args.version is None else args.version}",
+                      str(Path(args.model).resolve()), net_version=args.version)
+    with _bar(len(specs), f"evaluating {name}") as bar:
+        res = evaluate(name, variant, specs, workers=args.workers, progress=lambda i, n: bar.update(1), ray=args.ray)
+    pushed = f"; pushed {res['pushed']['successes']}/{res['pushed']['trials']}" if res.get("pushed") else ""
+    print(f"success {100 * res['rate']:.1f} % ({res['successes']}/{res['trials']}; 95 % CI {100 * res['low']:.1f}-"
+          f"{100 * res['high']:.1f} %){pushed}; the robot's own verdict agreed on {100 * res['agreement']:.1f} %"
+          + (f"; {res['faults']} fault(s)" if res["faults"] else ""))
+    if args.out:
+        write_json(args.out, {"model": str(args.model), "task": name, "seed": args.seed, **res})
+        print(f"wrote {args.out}")
+    return 1 if res["faults"] else 0
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     from .job import Job, JobConfig
     cfg = JobConfig(demos=args.demos, eval_trials=args.eval_trials, ablation_trials=args.ablation_trials,
                     practice_max_trials=args.max_trials, workers=args.workers, seed=args.seed,
                     videos=not args.no_video, inverse_model=not args.reference_controller,
-                    learn=args.learn_from_practice, practice_budget=args.practice_budget)
+                    learn=args.learn_from_practice, practice_budget=args.practice_budget, ray=args.ray)
     m = Job(args.task, args.out, cfg).run()
     sr = m["success_rate"]
     print(f"success rate {100 * sr['rate']:.1f} % ({sr['successes']}/{sr['trials']}; 95 % CI "
@@ -421,6 +469,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
     p.add_argument("--workers", type=_count(1, 256), default=2, help="processes")
     p.add_argument("--seed", type=_count(0, 40_000), default=0, help="demo i starts from seed 100000 * SEED + i")
+    _add_ray(p)
     p.set_defaults(func=cmd_record)
 
     demos = sub.add_parser("demos", help="inspect demonstration files")
@@ -486,6 +535,24 @@ def build_parser() -> argparse.ArgumentParser:
                         "directory never imports code on its own")
     p.set_defaults(func=cmd_practice)
 
+    p = sub.add_parser("evaluate", help="run a trained model on the task's evaluation trials; success with its "
+                                        "95 % interval, the pushed split, the robot's own verdict")
+    p.add_argument("model", help="model directory")
+    p.add_argument("--task", default=None, choices=["pendulum", "nunchaku"],
+                   help="the task (default: the one whose env the model runs)")
+    p.add_argument("--trials", type=_count(1, 1_000_000), default=200)
+    p.add_argument("--seed", type=_count(0, 40_000), default=0, help="which trials (the main job's evaluation: 0)")
+    p.add_argument("--push-fraction", type=_fraction, default=0.5,
+                   help="share of the trials pushed while balancing (pendulum)")
+    p.add_argument("--version", "-v", type=_count(-1_000_000, 1_000_000), dest="version", default=None,
+                   help="net version to run (default: the latest)")
+    p.add_argument("--workers", type=_count(1, 256), default=2)
+    p.add_argument("--out", "-o", default=None, help="write every trial's record here (JSON)")
+    p.add_argument("--env-module", action="append", default=[], metavar="MODULE",
+                   help="allow the model's env id to import MODULE")
+    _add_ray(p)
+    p.set_defaults(func=cmd_evaluate)
+
     p = sub.add_parser("demo", help="the main job: record, train, practise with repair, evaluate, report")
     p.add_argument("task", choices=["pendulum", "nunchaku"])
     p.add_argument("--out", "-o", required=True, help="run folder")
@@ -504,6 +571,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="practice trials of all scenarios together at most")
     p.add_argument("--reference-controller", action="store_true",
                    help="drive the arm with the env's model-based controller instead of the learned inverse model")
+    _add_ray(p)
     p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("report", help="rebuild a run folder's report.html from its metrics.json")

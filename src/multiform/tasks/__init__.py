@@ -7,6 +7,8 @@ from __future__ import annotations
 from importlib import import_module
 from types import ModuleType
 
+from ..errors import InvalidInput
+
 TASKS = {"pendulum": "multiform.tasks.pendulum", "nunchaku": "multiform.tasks.nunchaku"}
 
 
@@ -15,3 +17,12 @@ def get_task(name: str) -> ModuleType:
     if name not in TASKS:
         raise KeyError(f"unknown task {name!r}; tasks: {', '.join(TASKS)}")
     return import_module(TASKS[name])
+
+
+def task_for_env(env_id: str) -> str:
+    """The name of the task whose env is ``env_id`` (how a model directory's task is found)."""
+    for name in TASKS:
+        if get_task(name).ENV_ID == env_id:
+            return name
+    raise InvalidInput(f"no task runs the env {env_id!r}; tasks: "
+                       + ", ".join(f"{n} ({get_task(n).ENV_ID})" for n in TASKS), element="env")
