@@ -64,7 +64,8 @@ def lab(tmp_path_factory) -> Path:
 
 def _env() -> dict[str, str]:
     return {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", ""),
-            "RAY_USAGE_STATS_ENABLED": "0", "MUJOCO_GL": "egl", "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": TOKEN}
+            "RAY_USAGE_STATS_ENABLED": "0", "MUJOCO_GL": "egl", "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": TOKEN,
+            "RAY_worker_niceness": "0"}
 
 
 def _free_port() -> int:

@@ -48,6 +48,8 @@ def connect(address: str, num_cpus: int | None = None) -> None:
                                         "MKL_NUM_THREADS": "1", "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}}}
     try:
         if address == "local":
+            # Ray runs its workers at nice 15 (below its own services); here the workers are the work
+            os.environ.setdefault("RAY_worker_niceness", "0")
             ray.init(num_cpus=num_cpus, include_dashboard=False, object_store_memory=OBJECT_STORE_BYTES,
                      logging_level="WARNING", configure_logging=True, **env)
         else:
