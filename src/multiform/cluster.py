@@ -198,7 +198,7 @@ class RayTrials:
 
     def close(self) -> None:
         """Cancel the trials not yet finished (nothing waits for them any more)."""
-        pending, _ = ray.wait(self._refs, num_returns=len(self._refs), timeout=0) if self._refs else ([], [])
+        _, pending = ray.wait(self._refs, num_returns=len(self._refs), timeout=0) if self._refs else ([], [])
         for r in pending:
             ray.cancel(r)
         self._refs, self._packs = [], {}
