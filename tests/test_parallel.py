@@ -36,3 +36,12 @@ def test_without_ray_installed_a_ray_option_is_a_clear_error(monkeypatch, tmp_pa
     assert main(["record", "pendulum", "--demos", "1", "--out", str(out), "--ray", "local"]) == 2
     assert "--ray: Ray is not installed" in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("address, says", [("127.0.0.1:1", "cannot reach the Ray cluster at '127.0.0.1:1'"),
+                                           ("nonsense", "'nonsense' is not auto, local, HOST:PORT")])
+def test_a_ray_address_where_nothing_listens_is_refused_at_once(tmp_path, capsys, address, says):
+    out = tmp_path / "d.h5"
+    assert main(["record", "pendulum", "--demos", "1", "--out", str(out), "--ray", address]) == 2
+    assert says in capsys.readouterr().err
+    assert not out.exists()

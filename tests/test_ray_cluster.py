@@ -23,7 +23,7 @@ import pytest
 import multiform
 from multiform.adapt.evaluation import Variant, evaluate
 from multiform.cli import main
-from multiform.demos.dataset import write_dataset
+from multiform.demos.dataset import read_dataset, write_dataset
 from multiform.demos.record import record_many
 from multiform.errors import InvalidInput
 from multiform.job import train_model
@@ -83,7 +83,7 @@ def _cluster_cpus(address: str) -> float:
     return 0.0
 
 
-@pytest.fixture()
+@pytest.fixture(scope="module")
 def cluster():
     """A head and a second node, one CPU each, started here as `ray start --block` processes and
     stopped by their ids (SIGTERM: each stops what it started), failure or not."""
@@ -167,7 +167,6 @@ def test_a_two_node_cluster_gives_the_local_pools_trials_even_when_a_worker_dies
             driver.kill()
             driver.wait()
     assert driver.returncode == 0, err[-2000:]
-    (tmp_path / "driver.err").write_text(err)
     assert not Path(f"/proc/{killed}").exists()
     remote = json.loads((tmp_path / "ray.json").read_text())
     assert remote["trials"] == 40 and len(remote["trials_detail"]) == 40
@@ -176,6 +175,18 @@ def test_a_two_node_cluster_gives_the_local_pools_trials_even_when_a_worker_dies
     assert len({t["trace_digest"] for t in remote["trials_detail"]}) == 40      # 40 different trials
     assert {k: remote[k] for k in ("successes", "rate", "low", "high", "agreement")} == \
            {k: local[k] for k in ("successes", "rate", "low", "high", "agreement")}
+
+
+def test_demonstrations_recorded_on_the_cluster_are_the_local_ones(cluster, tmp_path):
+    address, _ = cluster
+    out = tmp_path / "demos.h5"
+    run = subprocess.run([sys.executable, "-m", "multiform.cli", "record", "pendulum", "--demos", "2", "--seed", "7",
+                          "--ray", address, "--out", str(out)], env=_env(), capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    here = record_many("pendulum", [700_000, 700_001], task.DEMO_ENV_KWARGS)
+    for a, b in zip(here, read_dataset(out).episodes, strict=True):
+        assert np.array_equal(a.obs, b.obs) and np.array_equal(a.actions, b.actions)
+        assert a.labels == b.labels and a.outcome == b.outcome and a.reset_options == b.reset_options
 
 
 def test_the_model_travels_as_bytes_and_is_verified_where_it_lands(lab, tmp_path):

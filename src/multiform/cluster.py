@@ -46,6 +46,8 @@ def connect(address: str, num_cpus: int | None = None) -> None:
         return
     env = {"runtime_env": {"env_vars": {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
                                         "MKL_NUM_THREADS": "1", "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}}}
+    if address not in ("auto", "local"):
+        _reachable(address)
     try:
         if address == "local":
             # Ray runs its workers at nice 15 (below its own services); here the workers are the work
@@ -56,6 +58,19 @@ def connect(address: str, num_cpus: int | None = None) -> None:
             ray.init(address=address, logging_level="WARNING", **env)
     except (ConnectionError, ValueError, RuntimeError) as exc:
         raise InvalidInput(f"cannot join the Ray cluster at {address!r}: {str(exc).splitlines()[0]}",
+                           element="--ray") from None
+
+
+def _reachable(address: str, seconds: float = 10.0) -> None:
+    """Refuse at once an address where nothing listens (Ray itself would retry for minutes)."""
+    import socket
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    try:
+        socket.create_connection((host or "127.0.0.1", int(port)), timeout=seconds).close()
+    except ValueError:
+        raise InvalidInput(f"{address!r} is not auto, local, HOST:PORT or ray://HOST:PORT", element="--ray") from None
+    except OSError as exc:
+        raise InvalidInput(f"cannot reach the Ray cluster at {address!r} ({exc.strerror or exc})",
                            element="--ray") from None
 
 
