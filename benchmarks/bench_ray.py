@@ -3,9 +3,10 @@
 Both backends run the same pendulum trials of one trained model, after the same warm-up (each
 worker opens the model on its first trial; Ray's cluster start and worker start-up are timed
 apart), in alternating rounds (local, Ray, local, Ray, ...) so that a busy spell of a shared
-machine does not fall on one backend only; medians over the rounds. Prints trials per second of each, their ratio (Ray / local), the per-trial overhead of each
-path (wall time per trial and CPU minus the trial's own closed-loop time: scheduling, grading,
-moving the record back), the time to start Ray, and the wall time of a 10,000-trial evaluation
+machine does not fall on one backend only; medians over the rounds. Prints trials per second of
+each, their ratio (Ray / local), the per-trial overhead of each path (wall time per trial and CPU
+minus the trial's own closed-loop time: scheduling, grading, moving the record back), the time to
+start Ray, and the wall time of a 10,000-trial evaluation
 extrapolated from the measured rates. Also checks that both gave the same trials.
 
     .venv/bin/python benchmarks/bench_ray.py [--model DIR] [--trials 16] [--cpus 2] [--rounds 2]
@@ -74,7 +75,8 @@ def main() -> None:
               f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores)", flush=True)
         rounds = []
         for i in range(args.rounds):
-            rounds.append((timed(variant, args.cpus, args.trials, None), timed(variant, args.cpus, args.trials, "local")))
+            rounds.append((timed(variant, args.cpus, args.trials, None),
+                           timed(variant, args.cpus, args.trials, "local")))
             lo, ra = rounds[-1]
             print(f"round {i + 1}: local pool {lo['rate']:.3f} trials/s, Ray {ra['rate']:.3f} trials/s, "
                   f"ratio {ra['rate'] / lo['rate']:.2f}", flush=True)

@@ -3,9 +3,9 @@ with Wilson intervals.
 
 A trial is described by plain data (:class:`TrialSpec`) so it crosses process boundaries; each
 worker opens the model directory itself (a local pool's worker reads it from disk, a Ray worker gets
-its bytes through the object store, see :mod:`multiform.cluster`). Success is the task's physical check on the trace (the
-same check for every variant, so a baseline without a net is judged like the full skill); the
-robot's own verdict (net outcome + judges) is kept beside it.
+its bytes through the object store, see :mod:`multiform.cluster`). Success is the task's physical
+check on the trace (the same check for every variant, so a baseline without a net is judged like
+the full skill); the robot's own verdict (net outcome + judges) is kept beside it.
 """
 
 from __future__ import annotations
@@ -99,8 +99,8 @@ def _run(variant: Variant, spec: TrialSpec) -> dict[str, Any]:
 
 
 def _digest(trace: Any) -> str:
-    """The trial's fingerprint: SHA-256 of what the robot sensed, commanded and marked, tick by tick
-    (equal digests: the same trial, wherever it ran)."""
+    """The trial's fingerprint: SHA-256 (first 16 hex digits) of what the robot sensed, commanded
+    and marked, tick by tick (equal digests: the same trial, wherever it ran)."""
     import hashlib
     h = hashlib.sha256()
     for a in (trace.obs, trace.commands, trace.marking):
