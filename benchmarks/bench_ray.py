@@ -6,8 +6,8 @@ apart), in alternating rounds (local, Ray, local, Ray, ...) so that a busy spell
 machine does not fall on one backend only; medians over the rounds. Prints trials per second of
 each, their ratio (Ray / local), the per-trial overhead of each path (wall time per trial and CPU
 minus the trial's own closed-loop time: scheduling, grading, moving the record back), the time to
-start Ray, and the wall time of a 10,000-trial evaluation
-extrapolated from the measured rates. Also checks that both gave the same trials.
+start Ray, and the wall time of a 10,000-trial evaluation extrapolated from the measured rates.
+Also checks that both gave the same trials.
 
     .venv/bin/python benchmarks/bench_ray.py [--model DIR] [--trials 16] [--cpus 2] [--rounds 2]
 
