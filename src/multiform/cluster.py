@@ -74,11 +74,6 @@ def _reachable(address: str, seconds: float = 10.0) -> None:
                            element="--ray") from None
 
 
-def cluster_cpus() -> int:
-    """CPUs of the connected cluster."""
-    return int(ray.cluster_resources().get("CPU", 0))
-
-
 _REMOTE: dict[str, Any] = {}
 
 
