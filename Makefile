@@ -37,7 +37,7 @@ $(STAMP): pyproject.toml scripts/system-deps.sh
 	bash scripts/system-deps.sh
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q -e '.[test,lerobot,interop,view]'
+	$(BIN)/python -m pip install -q -e '.[test,lerobot,interop,view,ray]'
 	$(BIN)/python -m pip install -q --no-deps robomimic==0.3.0
 	touch $(STAMP)
 

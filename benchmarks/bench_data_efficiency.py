@@ -13,10 +13,13 @@ interaction for a cart-pole swing-up), mentor-labelled trials; then the median o
 (demos, variant). Writes ``OUT/data_efficiency.json`` and ``OUT/data_efficiency.png``.
 
     .venv/bin/python benchmarks/bench_data_efficiency.py --out runs/data_efficiency \\
-        [--demos 5 10 20 40] [--seeds 0 1 2] [--trials 200] [--workers 2]
+        [--demos 5 10 20 40] [--seeds 0 1 2] [--trials 200] [--workers 2] [--ray ADDRESS]
 
 About 6-10 minutes per pipeline on a 2-core machine (the whole default grid is 24 pipelines: hours);
 finished pipelines are reused from their folders, so an interrupted run goes on where it stopped.
+With ``--ray`` (``auto``, ``local`` or a cluster address) the pipelines of each (demos, seed) run as
+one Ray task on one CPU, in the worker's temporary folder; only their ``metrics.json`` come back,
+written here by this process.
 """
 
 from __future__ import annotations
@@ -61,6 +64,44 @@ def pipeline(task: str, out: Path, demos: int, seed: int, learn: bool, trials: i
             "revisions": [f"{r['operator']} {r['target']}" for r in m["revisions"]]}
 
 
+def remote_pipelines(task: str, demos: int, seed: int, learns: list[bool], trials: int, budget: int) -> dict:
+    """The pipelines ``learns`` of one (demos, seed), on a Ray worker in a temporary folder (the
+    learning run starts from a copy of the repair run, as here); their metrics by variant."""
+    import tempfile
+    out = {}
+    with tempfile.TemporaryDirectory(prefix="multiform-pipeline-") as tmp:
+        base = Path(tmp) / "repair"
+        for learn in sorted(set(learns) | ({False} if True in learns else set())):
+            folder = Path(tmp) / ("learn" if learn else "repair")
+            if learn:
+                shutil.copytree(base, folder, ignore=shutil.ignore_patterns("metrics.json", "report.html"))
+            cfg = JobConfig(demos=demos, seed=seed, eval_trials=trials, ablation_trials=0, videos=False,
+                            workers=1, learn=learn, practice_budget=budget)
+            Job(task, folder, cfg, log=lambda *a: None, progress=False).run()
+            if learn in learns:
+                out[VARIANTS[learn]] = read_json(folder / "metrics.json", "metrics")
+    return out
+
+
+def run_on_ray(args: argparse.Namespace, out: Path) -> None:
+    """Every pipeline without a ``metrics.json`` here, as Ray tasks; the driver writes the metrics."""
+    from multiform.parallel import ray_backend
+    todo = []
+    for demos in args.demos:
+        for seed in args.seeds:
+            learns = [learn for learn in (False, True) if ("learn" if learn else "repair") in args.variants
+                      and not (out / f"d{demos}_s{seed}_{'learn' if learn else 'repair'}" / "metrics.json").exists()]
+            if learns:
+                todo.append((args.task, demos, seed, learns, args.trials, args.budget))
+    print(f"{len(todo)} (demos, seed) pair(s) to run on Ray ({args.ray})", flush=True)
+    for i, metrics in ray_backend().run_tasks(remote_pipelines, todo, args.ray, num_cpus=args.workers):
+        _, demos, seed, *_ = todo[i]
+        for variant, m in metrics.items():
+            folder = out / f"d{demos}_s{seed}_{'learn' if variant == VARIANTS[1] else 'repair'}"
+            write_json(folder / "metrics.json", m)
+        print(f"  done: {demos} demos, seed {seed}", flush=True)
+
+
 def plot(rows: list[dict], path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
@@ -96,8 +137,12 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--budget", type=int, default=100, help="practice trials per pipeline at most")
     ap.add_argument("--variants", nargs="+", choices=["repair", "learn"], default=["repair", "learn"])
+    ap.add_argument("--ray", metavar="ADDRESS", default=None,
+                    help="run the pipelines as Ray tasks: auto, local (with --workers CPUs) or a cluster address")
     args = ap.parse_args()
     out = Path(args.out)
+    if args.ray:
+        run_on_ray(args, out)
     rows = []
     print(f"{'demos':>5} {'seed':>4} {'variant':<24} {'success':>22} {'unpushed':>9} {'pushed':>8} "
           f"{'practice':>8} {'robot s':>8} {'mentor':>6}", flush=True)

@@ -74,6 +74,14 @@ def _fraction(text: str) -> float:
     return v
 
 
+def _add_ray(p: argparse.ArgumentParser) -> None:
+    """``--ray ADDRESS``: run the independent trials or demonstrations as Ray tasks."""
+    p.add_argument("--ray", metavar="ADDRESS", default=None,
+                   help="run the trials as Ray tasks (pip install 'multiform[ray]'): 'auto' joins the cluster this "
+                        "machine belongs to, 'local' starts one here with --workers CPUs, or HOST:PORT / "
+                        "ray://HOST:PORT; --workers then counts nothing else")
+
+
 def _default_output(name: str, suffix: str) -> Path:
     """A default output file in the current folder, named for ``name`` (a net's name, which comes
     from a file and may hold a path): only its base name, in safe characters."""
@@ -195,7 +203,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     with exclusive(out):
         with _bar(len(seeds), f"recording {args.task} demos") as bar:
             eps = record_many(args.task, seeds, task.DEMO_ENV_KWARGS, workers=args.workers,
-                              progress=lambda i, n: bar.update(1))
+                              progress=lambda i, n: bar.update(1), ray=args.ray)
         write_dataset(out, eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)
     ok = sum(e.outcome == "success" for e in eps)
     print(f"wrote {out}: {len(eps)} demos, the mentor succeeded in {ok} ({100 * ok / len(eps):.0f} %)")
@@ -407,7 +415,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     variant = Variant(f"{model.apn.name} v{model.version if args.version is None else args.version}",
                       str(Path(args.model).resolve()), net_version=args.version)
     with _bar(len(specs), f"evaluating {name}") as bar:
-        res = evaluate(name, variant, specs, workers=args.workers, progress=lambda i, n: bar.update(1))
+        res = evaluate(name, variant, specs, workers=args.workers, progress=lambda i, n: bar.update(1), ray=args.ray)
     pushed = f"; pushed {res['pushed']['successes']}/{res['pushed']['trials']}" if res.get("pushed") else ""
     print(f"success {100 * res['rate']:.1f} % ({res['successes']}/{res['trials']}; 95 % CI {100 * res['low']:.1f}-"
           f"{100 * res['high']:.1f} %){pushed}; the robot's own verdict agreed on {100 * res['agreement']:.1f} %"
@@ -469,7 +477,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     cfg = JobConfig(demos=args.demos, eval_trials=args.eval_trials, ablation_trials=args.ablation_trials,
                     practice_max_trials=args.max_trials, workers=args.workers, seed=args.seed,
                     videos=not args.no_video, inverse_model=not args.reference_controller,
-                    learn=args.learn_from_practice, practice_budget=args.practice_budget)
+                    learn=args.learn_from_practice, practice_budget=args.practice_budget, ray=args.ray)
     m = Job(args.task, args.out, cfg, view=args.view).run()
     sr = m["success_rate"]
     print(f"success rate {100 * sr['rate']:.1f} % ({sr['successes']}/{sr['trials']}; 95 % CI "
@@ -557,6 +565,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
     p.add_argument("--workers", type=_count(1, 256), default=2, help="processes")
     p.add_argument("--seed", type=_count(0, 40_000), default=0, help="demo i starts from seed 100000 * SEED + i")
+    _add_ray(p)
     p.set_defaults(func=cmd_record)
 
     demos = sub.add_parser("demos", help="inspect, export and import demonstration files")
@@ -658,6 +667,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="folder for evaluation.json: the rate, its interval, and one record per trial")
     p.add_argument("--env-module", action="append", default=[], metavar="MODULE",
                    help="allow the model's env id to import MODULE")
+    _add_ray(p)
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("demo", help="the main job: record, train, practise with repair, evaluate, report")
@@ -679,6 +689,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--reference-controller", action="store_true",
                    help="drive the arm with the env's model-based controller instead of the learned inverse model")
     _add_view(p, "the report's picked trials (saved in RUN/view/)")
+    _add_ray(p)
     p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("replay", help="replay a demonstration or a saved trial into the view (.rrd) or to an MP4",

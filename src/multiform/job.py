@@ -61,6 +61,8 @@ class JobConfig:
     push_fraction: float = 0.5
     videos: bool = True
     inverse_model: bool = True
+    ray: str | None = None           # record and evaluate as Ray tasks: "auto", "local" or a cluster address
+    start_method: str | None = None  # of the local pool (default: fork on Linux)
 
 
 class Job:
@@ -105,7 +107,8 @@ class Job:
                 return path
         with self._bar(len(seeds), "recording demos", unit="demo") as bar:
             eps = record_many(self.task.TASK, seeds, self.task.DEMO_ENV_KWARGS, workers=self.cfg.workers,
-                              progress=lambda i, n: bar.update(1))
+                              progress=lambda i, n: bar.update(1), start_method=self.cfg.start_method,
+                              ray=self.cfg.ray)
         write_dataset(path, eps, self.task.SKILL, self.task.ENV_ID, self.task.DEMO_ENV_KWARGS,
                       mentor=getattr(eps[0], "mentor", "") if eps else "")
         ok = sum(e.outcome == "success" for e in eps)
@@ -212,7 +215,7 @@ class Job:
         t0 = time.perf_counter()
         demos = self._stage("record", self.record)
         model = self._stage("train", lambda: self.train(demos))
-        with Evaluator(self.task.TASK, self.cfg.workers) as ev:
+        with Evaluator(self.task.TASK, self.cfg.workers, start_method=self.cfg.start_method, ray=self.cfg.ray) as ev:
             # baselines built from the trained model alone run while the robot practises, on the
             # core practice leaves idle; the others once practice has revised the net
             early = not getattr(self.task, "ABLATIONS_AFTER_PRACTICE", True)

@@ -2,20 +2,21 @@
 with Wilson intervals.
 
 A trial is described by plain data (:class:`TrialSpec`) so it crosses process boundaries; each
-worker opens the model directory itself. Success is the task's physical check on the trace (the
-same check for every variant, so a baseline without a net is judged like the full skill); the
-robot's own verdict (net outcome + judges) is kept beside it.
+worker opens the model directory itself (a local pool's worker reads it from disk, a Ray worker gets
+its bytes through the object store, see :mod:`multiform.cluster`). Success is the task's physical
+check on the trace (the same check for every variant, so a baseline without a net is judged like
+the full skill); the robot's own verdict (net outcome + judges) is kept beside it.
 """
 
 from __future__ import annotations
 
-import multiprocessing as mp
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..parallel import mp_context, ray_backend
 from ..stats import rate
 
 
@@ -50,7 +51,14 @@ def _init(task: str, env_overrides: dict[str, Any]) -> None:
     from ..tasks import get_task
     threadpool_limits(1)
     _WORKER.clear()
-    _WORKER.update(task=get_task(task), env_overrides=env_overrides, variants={})
+    _WORKER.update(task=get_task(task), env_overrides=env_overrides, variants={}, key=(task, repr(env_overrides)))
+
+
+def ensure_worker(task: str, env_overrides: dict[str, Any]) -> None:
+    """Set this process up for trials of ``task`` unless it already is (a Ray worker runs many)."""
+    if _WORKER.get("key") != (task, repr(env_overrides)):
+        _close()
+        _init(task, env_overrides)
 
 
 def _variant(variant: Variant) -> dict[str, Any]:
@@ -86,7 +94,18 @@ def _run(variant: Variant, spec: TrialSpec) -> dict[str, Any]:
             "self_success": bool(trace.success and (grade is None or grade.success)),
             "judge_score": None if grade is None else round(grade.score, 4), "duration": round(trace.duration, 3),
             "pushed": spec.push is not None, "fired": trace.fired(), "wall": round(trace.wall_time, 3),
-            "clips": {c: v["count"] for c, v in trace.clips.items()}, **({"fault": trace.fault} if trace.fault else {})}
+            "clips": {c: v["count"] for c, v in trace.clips.items()}, "trace_digest": _digest(trace),
+            **({"fault": trace.fault} if trace.fault else {})}
+
+
+def _digest(trace: Any) -> str:
+    """The trial's fingerprint: SHA-256 (first 16 hex digits) of what the robot sensed, commanded
+    and marked, tick by tick (equal digests: the same trial, wherever it ran)."""
+    import hashlib
+    h = hashlib.sha256()
+    for a in (trace.obs, trace.commands, trace.marking):
+        h.update(a.tobytes())
+    return h.hexdigest()[:16]
 
 
 def summarise(variant: Variant, results: Sequence[dict[str, Any]]) -> dict[str, Any]:
@@ -108,23 +127,33 @@ class Evaluator:
     robot still practises, on the core practice leaves idle) and collects them when it needs them.
 
     Use as a context manager; ``workers`` ≤ 1 runs each trial in this process when collected.
+    ``start_method`` is the local pool's (default: fork on Linux, spawn elsewhere). With ``ray``
+    (``auto``, ``local`` or a cluster address) the trials are Ray tasks instead, on every CPU of
+    the cluster (``local`` starts one with ``workers`` CPUs); the records are the same.
     """
 
-    def __init__(self, task: str, workers: int = 2, env_overrides: dict[str, Any] | None = None):
+    def __init__(self, task: str, workers: int = 2, env_overrides: dict[str, Any] | None = None,
+                 start_method: str | None = None, ray: str | None = None):
         self.task, self.workers = task, workers
         self.env_overrides = dict(env_overrides or {})
         self._pool: ProcessPoolExecutor | None = None
-        if workers > 1:
-            self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("fork"),
+        self._ray: Any = None
+        if ray:
+            self._ray = ray_backend().RayTrials(task, self.env_overrides, ray, num_cpus=max(1, workers))
+        elif workers > 1:
+            self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp_context(start_method),
                                              initializer=_init, initargs=(task, self.env_overrides))
 
     def submit(self, variant: Variant, trials: Sequence[TrialSpec],
                progress: Callable[[], None] | None = None) -> list[Future | _Deferred]:
         """Queue ``trials`` of ``variant``; ``progress`` is called (from a pool thread) as each ends.
         Returns one handle per trial, with ``result()``."""
-        if self._pool is None:
+        if self._ray is not None:
+            futures = self._ray.submit(variant, trials)
+        elif self._pool is None:
             return [_Deferred(self, variant, spec, progress) for spec in trials]
-        futures = [self._pool.submit(_run, variant, spec) for spec in trials]
+        else:
+            futures = [self._pool.submit(_run, variant, spec) for spec in trials]
         if progress is not None:
             for f in futures:
                 f.add_done_callback(lambda _f: progress())
@@ -140,7 +169,10 @@ class Evaluator:
         return _run(variant, spec)
 
     def close(self) -> None:
-        if self._pool is not None:
+        if self._ray is not None:
+            self._ray.close()
+            self._ray = None
+        elif self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
         elif _WORKER:
@@ -170,9 +202,10 @@ class _Deferred:
 
 def evaluate(task: str, variant: Variant, trials: Sequence[TrialSpec], workers: int = 2,
              env_overrides: dict[str, Any] | None = None,
-             progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
-    """Run ``trials`` of ``variant``; returns the rate (Wilson interval), the robot's self-assessed
-    rate, and one record per trial."""
+             progress: Callable[[int, int], None] | None = None,
+             start_method: str | None = None, ray: str | None = None) -> dict[str, Any]:
+    """Run ``trials`` of ``variant`` (where: see :class:`Evaluator`); returns the rate (Wilson
+    interval), the robot's self-assessed rate, and one record per trial."""
     done = [0]
 
     def tick() -> None:
@@ -180,5 +213,5 @@ def evaluate(task: str, variant: Variant, trials: Sequence[TrialSpec], workers: 
         if progress:
             progress(done[0], len(trials))
 
-    with Evaluator(task, workers, env_overrides) as ev:
+    with Evaluator(task, workers, env_overrides, start_method=start_method, ray=ray) as ev:
         return ev.collect(variant, ev.submit(variant, trials, tick))

@@ -94,10 +94,22 @@ _WORKER: dict[str, Any] = {}
 def _init(task: str, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) -> None:
     from threadpoolctl import threadpool_limits
 
+    import multiform.envs  # noqa: F401  (registers the envs; a spawned worker has not imported them)
+
     from ..tasks import get_task
     threadpool_limits(1)
     t = get_task(task)
-    _WORKER.update(task=t, env=gym.make(t.ENV_ID, **env_kwargs), mentor=t.make_mentor(**mentor_kwargs))
+    _WORKER.update(task=t, env=gym.make(t.ENV_ID, **env_kwargs), mentor=t.make_mentor(**mentor_kwargs),
+                   key=(task, repr(env_kwargs), repr(mentor_kwargs)))
+
+
+def ensure_worker(task: str, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) -> None:
+    """Set this process up to record ``task`` unless it already is (a Ray worker records many)."""
+    if _WORKER.get("key") != (task, repr(env_kwargs), repr(mentor_kwargs)):
+        if "env" in _WORKER:
+            _WORKER["env"].close()
+        _WORKER.clear()
+        _init(task, env_kwargs, mentor_kwargs)
 
 
 def demo_push(task: Any, seed: int) -> PushDuring | None:
@@ -114,27 +126,34 @@ def _record(seed: int) -> Episode:
 
 def record_many(task: str, seeds: list[int], env_kwargs: dict[str, Any] | None = None,
                 mentor_kwargs: dict[str, Any] | None = None, workers: int = 1,
-                progress: Any = None) -> list[Episode]:
-    """Record one demonstration per seed with the task's scripted mentor, on ``workers`` processes.
+                progress: Any = None, start_method: str | None = None, ray: str | None = None) -> list[Episode]:
+    """Record one demonstration per seed with the task's scripted mentor, on ``workers`` processes
+    (``start_method``: see :func:`multiform.parallel.mp_context`), or as Ray tasks with ``ray``
+    (``auto``, ``local`` or a cluster address).
 
     ``progress`` is called with (done, total) after each demo. The result is in seed order and does
-    not depend on the number of workers.
+    not depend on the number of workers nor on where they run.
     """
-    import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
     import multiform.envs  # noqa: F401  (registers the envs)
+
+    from ..parallel import mp_context, ray_backend
     env_kwargs, mentor_kwargs = dict(env_kwargs or {}), dict(mentor_kwargs or {})
+    if ray:
+        return ray_backend().record_demos(task, seeds, env_kwargs, mentor_kwargs, ray, num_cpus=max(1, workers),
+                                          progress=progress)
     out: list[Episode] = []
     if workers <= 1:
-        _init(task, env_kwargs, mentor_kwargs)
+        ensure_worker(task, env_kwargs, mentor_kwargs)
         for i, s in enumerate(seeds):
             out.append(_record(s))
             if progress:
                 progress(i + 1, len(seeds))
         _WORKER["env"].close()
+        _WORKER.clear()
         return out
-    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("fork"), initializer=_init,
+    with ProcessPoolExecutor(max_workers=workers, mp_context=mp_context(start_method), initializer=_init,
                              initargs=(task, env_kwargs, mentor_kwargs)) as pool:
         for i, ep in enumerate(pool.map(_record, seeds)):
             out.append(ep)
