@@ -147,12 +147,12 @@ def _trial_workers(temp: str) -> list[int]:
 def test_a_two_node_cluster_gives_the_local_pools_trials_even_when_a_worker_dies(lab, cluster, tmp_path):
     address, temp = cluster
     model = str(lab / "model")
-    assert main(["evaluate", model, "--trials", "40", "--workers", "2", "--out", str(tmp_path / "local.json")]) == 0
-    local = json.loads((tmp_path / "local.json").read_text())
+    assert main(["evaluate", model, "--trials", "40", "--workers", "2", "--out", str(tmp_path / "local")]) == 0
+    local = json.loads((tmp_path / "local" / "evaluation.json").read_text())
 
     driver = subprocess.Popen(
         [sys.executable, "-m", "multiform.cli", "evaluate", model, "--trials", "40", "--ray", address,
-         "--out", str(tmp_path / "ray.json")],
+         "--out", str(tmp_path / "ray")],
         env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     killed = None
     try:
@@ -168,7 +168,7 @@ def test_a_two_node_cluster_gives_the_local_pools_trials_even_when_a_worker_dies
             driver.wait()
     assert driver.returncode == 0, err[-2000:]
     assert not Path(f"/proc/{killed}").exists()
-    remote = json.loads((tmp_path / "ray.json").read_text())
+    remote = json.loads((tmp_path / "ray" / "evaluation.json").read_text())
     assert remote["trials"] == 40 and len(remote["trials_detail"]) == 40
     same_trials(local["trials_detail"], remote["trials_detail"])
     assert [t["seed"] for t in remote["trials_detail"]] == [50_000_000 + i for i in range(40)]
