@@ -40,7 +40,7 @@ from .model import SkillModel, staged_model_dir
 from .petri.net import APN
 from . import __version__
 from .stats import evaluation_split, rate
-from .tasks import get_task
+from .task import Task, load_task
 
 Log = Callable[[str], None]
 
@@ -66,9 +66,9 @@ class JobConfig:
 class Job:
     """One run folder for one task."""
 
-    def __init__(self, task: str | ModuleType, out: str | Path, config: JobConfig | None = None,
+    def __init__(self, task: str | Task | ModuleType, out: str | Path, config: JobConfig | None = None,
                  log: Log = print, progress: bool = True, view: str | None = None):
-        self.task = get_task(task) if isinstance(task, str) else task
+        self.task = load_task(task)
         self.out = Path(out)
         self.cfg = config or JobConfig()
         if self.cfg.demos is None:
@@ -104,7 +104,7 @@ class Job:
                 self.log(f"  reusing {path}")
                 return path
         with self._bar(len(seeds), "recording demos", unit="demo") as bar:
-            eps = record_many(self.task.TASK, seeds, self.task.DEMO_ENV_KWARGS, workers=self.cfg.workers,
+            eps = record_many(self.task, seeds, self.task.DEMO_ENV_KWARGS, workers=self.cfg.workers,
                               progress=lambda i, n: bar.update(1))
         write_dataset(path, eps, self.task.SKILL, self.task.ENV_ID, self.task.DEMO_ENV_KWARGS,
                       mentor=getattr(eps[0], "mentor", "") if eps else "")
@@ -212,7 +212,7 @@ class Job:
         t0 = time.perf_counter()
         demos = self._stage("record", self.record)
         model = self._stage("train", lambda: self.train(demos))
-        with Evaluator(self.task.TASK, self.cfg.workers) as ev:
+        with Evaluator(self.task, self.cfg.workers) as ev:
             # baselines built from the trained model alone run while the robot practises, on the
             # core practice leaves idle; the others once practice has revised the net
             early = not getattr(self.task, "ABLATIONS_AFTER_PRACTICE", True)

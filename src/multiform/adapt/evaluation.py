@@ -43,14 +43,14 @@ class Variant:
 _WORKER: dict[str, Any] = {}
 
 
-def _init(task: str, env_overrides: dict[str, Any]) -> None:
+def _init(task: Any, env_overrides: dict[str, Any]) -> None:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     from threadpoolctl import threadpool_limits
 
-    from ..tasks import get_task
+    from ..task import load_task
     threadpool_limits(1)
     _WORKER.clear()
-    _WORKER.update(task=get_task(task), env_overrides=env_overrides, variants={})
+    _WORKER.update(task=load_task(task), env_overrides=env_overrides, variants={})
 
 
 def _variant(variant: Variant) -> dict[str, Any]:
@@ -107,10 +107,12 @@ class Evaluator:
     submitted. A job submits the trials it can before it has everything (the baselines' while the
     robot still practises, on the core practice leaves idle) and collects them when it needs them.
 
-    Use as a context manager; ``workers`` ≤ 1 runs each trial in this process when collected.
+    ``task`` is a :class:`~multiform.task.Task` or its name (:func:`~multiform.task.load_task`); the
+    workers are forked, so a task defined in memory reaches them too. Use as a context manager;
+    ``workers`` ≤ 1 runs each trial in this process when collected.
     """
 
-    def __init__(self, task: str, workers: int = 2, env_overrides: dict[str, Any] | None = None):
+    def __init__(self, task: Any, workers: int = 2, env_overrides: dict[str, Any] | None = None):
         self.task, self.workers = task, workers
         self.env_overrides = dict(env_overrides or {})
         self._pool: ProcessPoolExecutor | None = None
@@ -168,7 +170,7 @@ class _Deferred:
         return out
 
 
-def evaluate(task: str, variant: Variant, trials: Sequence[TrialSpec], workers: int = 2,
+def evaluate(task: Any, variant: Variant, trials: Sequence[TrialSpec], workers: int = 2,
              env_overrides: dict[str, Any] | None = None,
              progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
     """Run ``trials`` of ``variant``; returns the rate (Wilson interval), the robot's self-assessed

@@ -91,12 +91,12 @@ def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, A
 _WORKER: dict[str, Any] = {}
 
 
-def _init(task: str, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) -> None:
+def _init(task: Any, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) -> None:
     from threadpoolctl import threadpool_limits
 
-    from ..tasks import get_task
+    from ..task import load_task
     threadpool_limits(1)
-    t = get_task(task)
+    t = load_task(task)
     _WORKER.update(task=t, env=gym.make(t.ENV_ID, **env_kwargs), mentor=t.make_mentor(**mentor_kwargs))
 
 
@@ -112,10 +112,11 @@ def _record(seed: int) -> Episode:
     return record_episode(w["env"], w["mentor"], seed, w["task"].demo_options(seed), push=demo_push(w["task"], seed))
 
 
-def record_many(task: str, seeds: list[int], env_kwargs: dict[str, Any] | None = None,
+def record_many(task: Any, seeds: list[int], env_kwargs: dict[str, Any] | None = None,
                 mentor_kwargs: dict[str, Any] | None = None, workers: int = 1,
                 progress: Any = None) -> list[Episode]:
     """Record one demonstration per seed with the task's scripted mentor, on ``workers`` processes.
+    ``task`` is a :class:`~multiform.task.Task` or what :func:`~multiform.task.load_task` reads.
 
     ``progress`` is called with (done, total) after each demo. The result is in seed order and does
     not depend on the number of workers.
