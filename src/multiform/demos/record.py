@@ -8,6 +8,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from ..runtime.contract import env_contract
 from .episode import Episode, Mentor
 
 
@@ -52,10 +53,9 @@ def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, A
     during the demo; the episode's reset options then hold the pulses applied (``disturbances``,
     empty if the push never came), so replaying them from the seed reproduces the demo.
     """
-    base = env.unwrapped
+    obs_names, cmd_names, dt = env_contract(env)
     obs, info = env.reset(seed=seed, options=options)
     mentor.reset(obs, np.random.default_rng([seed, 1]))
-    dt = float(base.dt)
     obs_rows, act_rows, tags = [], [], []
     t = 0.0
     limit = max_steps if max_steps is not None else 10**9
@@ -76,7 +76,7 @@ def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, A
         options["disturbances"] = list(options.get("disturbances") or []) + push.pulses
     episode = Episode(
         obs=np.asarray(obs_rows), actions=np.asarray(act_rows), transitions=np.asarray(tags, dtype=str),
-        observation_names=tuple(base.observation_names), command_names=tuple(base.command_names),
+        observation_names=obs_names, command_names=cmd_names,
         dt=dt, seed=seed, reset_options=options)
     episode.labels = list(mentor.label(episode))
     # the mentor's verdict on the whole attempt where it gives one (a pushed demo that the mentor
