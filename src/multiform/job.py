@@ -125,9 +125,11 @@ class Job:
             return SkillModel(final)
         # built beside and moved into place when complete; a killed job resumes the partial one
         with staged_model_dir(final, keep_on_error=True) as partial:
+            # a task without an inverse-model trainer runs in direct-command mode
+            use_inverse = self.cfg.inverse_model and self.task.train_inverse_model is not None
             model = SkillModel.create(partial, self.task.SKILL, demos, self.task.ENV_ID,
-                                      self.task.robot_env_kwargs(self.cfg.inverse_model))
-            inverse = self.task.train_inverse_model if self.cfg.inverse_model else None
+                                      self.task.robot_env_kwargs(use_inverse))
+            inverse = self.task.train_inverse_model if use_inverse else None
             train_model(model, seed=self.cfg.seed, log=self.log, inverse_trainer=inverse, beside=self.cfg.workers > 1)
         return SkillModel(final)
 
@@ -232,7 +234,7 @@ class Job:
             for r in s["revisions"]:
                 revisions.append({**r, "scenario": name})
         m = self.metrics
-        m.update(skill=self.task.SKILL, task=self.task.TASK, description=self.task.DESCRIPTION,
+        m.update(skill=self.task.SKILL, task=self.task.TASK, task_spec=self.task.spec or self.task.TASK, description=self.task.DESCRIPTION,
                  config=asdict(self.cfg), demos={"count": len(ds), "file": "demos.h5", "mentor_success_rate": rate(ok, len(ds)),
                                                  **{k: v for k, v in ds.summary().items() if k in ("samples", "samples_per_transition", "duration_s")}},
                  training=model.manifest.get("training", {}),

@@ -60,11 +60,15 @@ class NamedEnv(gym.Wrapper):
     ``observation_names`` name the entries of the (flat, Box) observation; ``command_names`` those
     of the action (direct-command mode: the skill's laws output the action itself); ``dt`` the
     seconds one step simulates (default: the env's own ``dt``, as Gymnasium's MuJoCo envs have).
+    The executor ends a trial the env terminates as a failure (bundled envs terminate when the
+    state diverges); ``terminal=False`` keeps an env's own termination from ending it — for an env
+    that terminates at its goal, so the skill's net decides when it is done.
     """
 
     def __init__(self, env: gym.Env, observation_names: Sequence[str], command_names: Sequence[str],
-                 dt: float | None = None):
+                 dt: float | None = None, terminal: bool = True):
         super().__init__(env)
+        self.terminal = terminal
         what = getattr(env.spec, "id", None) or type(env.unwrapped).__name__
         for space, names, kind in ((env.observation_space, observation_names, "observation"),
                                    (env.action_space, command_names, "action")):
@@ -81,3 +85,7 @@ class NamedEnv(gym.Wrapper):
             raise InvalidInput(f"the env {what} has no dt; give NamedEnv the seconds one step simulates",
                                element="dt")
         self.dt = float(base_dt)
+
+    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        return obs, reward, bool(terminated and self.terminal), truncated, info
