@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 export MUJOCO_GL ?= egl
 
-.PHONY: demo test test-slow bench setup clean
+.PHONY: demo test test-slow test-lerobot bench setup clean
 
 demo: $(STAMP)
 	$(BIN)/multiform demo pendulum --out runs/pendulum
@@ -16,6 +16,17 @@ test: $(STAMP)
 
 test-slow: $(STAMP)
 	$(BIN)/pytest -q -m slow
+
+# LeRobot pins its own torch, torchvision and rerun releases: it gets an environment of its own
+# (about 8 GB, 10 minutes to build), used only to load multiform's exports with LeRobot's own class.
+LEROBOT_VENV := .venv-lerobot
+$(LEROBOT_VENV)/.installed:
+	test -x $(LEROBOT_VENV)/bin/python || $(PYTHON) -m venv $(LEROBOT_VENV)
+	$(LEROBOT_VENV)/bin/python -m pip install -q 'lerobot==0.4.4'
+	touch $@
+
+test-lerobot: $(STAMP) $(LEROBOT_VENV)/.installed
+	MULTIFORM_LEROBOT_PYTHON=$(LEROBOT_VENV)/bin/python $(BIN)/pytest -q -m lerobot
 
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done
@@ -31,4 +42,4 @@ $(STAMP): pyproject.toml scripts/system-deps.sh
 	touch $(STAMP)
 
 clean:
-	rm -rf $(VENV) runs .pytest_cache .hypothesis
+	rm -rf $(VENV) $(LEROBOT_VENV) runs .pytest_cache .hypothesis

@@ -278,6 +278,12 @@ CASES: list[tuple[str, Callable[[Path], tuple[list[str], str]]]] = [
     ("evaluate_tampered_law", lambda w: do((w / "model" / "laws" / "swing_up.npz").write_bytes(b"x"),
                                            ["evaluate", str(w / "model")], "swing_up.npz")),
     ("evaluate_out_is_a_file", lambda w: do(["evaluate", str(w / "model"), "--out", str(w / "demos.h5")], "demos.h5")),
+    ("replay_missing_source", lambda w: do(["replay", str(w / "none.h5")], "none.h5")),
+    ("replay_demo_out_of_range", lambda w: do(["replay", str(w / "demos.h5"), "--demo", "99"], "99")),
+    ("replay_fps_zero", lambda w: do(["replay", str(w / "demos.h5"), "--fps", "0"], "--fps")),
+    ("replay_not_a_trace", lambda w: do((w / "t.npz").write_bytes(b"junk"), ["replay", str(w / "t.npz")], "t.npz")),
+    ("demos_export_missing", lambda w: do(["demos", "export", str(w / "none.h5"), "-o", "lr"], "none.h5")),
+    ("demos_import_not_a_dataset", lambda w: do(["demos", "import", str(w / "run"), "-o", "d.h5"], "run")),
     ("demo_out_under_a_file", lambda w: do(["demo", "pendulum", "--demos", "2", "-o", str(w / "demos.h5" / "run")],
                                            "run")),
 ]

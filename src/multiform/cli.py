@@ -701,11 +701,11 @@ def build_parser() -> argparse.ArgumentParser:
                                    "(.npz) is shown as recorded (its scene needs --model, the model that ran it). "
                                    "Without --video or --rrd, writes SOURCE's name with .rrd.")
     p.add_argument("source", help="demonstration file (.h5) or trial trace (.npz)")
-    p.add_argument("--demo", type=int, default=0, help="which demonstration of the file (from 0)")
+    p.add_argument("--demo", type=_count(0, 1_000_000), default=0, help="which demonstration of the file (from 0)")
     p.add_argument("--model", "-m", default=None, help="skill model directory (for a trial's scene)")
     p.add_argument("--video", default=None, help="write an MP4 with time, place, transition and push on every frame")
     p.add_argument("--rrd", default=None, help="write the rerun recording here")
-    p.add_argument("--fps", type=float, default=30.0, help="frames per second of the video and the scene")
+    p.add_argument("--fps", type=_positive, default=30.0, help="frames per second of the video and the scene")
     _add_view(p, "the replay")
     p.set_defaults(func=cmd_replay)
 

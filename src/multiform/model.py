@@ -423,6 +423,7 @@ class ModelLearners:
         self.model = model
         self.seed = seed
         self._floors: dict[str, float] | None = None
+        self._mentor: dict[tuple, Any] = {}
 
     def fresh_law(self, law: str) -> str:
         """An unused name for a new fit of ``law`` (``<law>_r1``, ``<law>_r2``, ...)."""
@@ -448,6 +449,18 @@ class ModelLearners:
         names = self.switch_variables(apn, transition)
         d = switch_data(apn, self.model.episodes, transition, names)
         return len(d.switch_states) >= 3 and len(d.negatives) >= 10
+
+    def mentor(self, apn: APN) -> Any:
+        """What the demonstrations say about ``apn`` (:func:`~multiform.adapt.mentor.mentor_evidence`),
+        computed once per net structure and conditions; None if the model has no demonstrations."""
+        from .adapt.mentor import mentor_evidence
+        key = tuple((t.id, tuple(t.inputs), tuple(t.outputs), str(t.condition)) for t in apn.transitions)
+        if key not in self._mentor:
+            try:
+                self._mentor[key] = mentor_evidence(apn, self.model.episodes)
+            except InvalidInput:
+                self._mentor[key] = None
+        return self._mentor[key]
 
     def switch_condition(self, apn: APN, transition: str) -> tuple[str, dict[str, Any]]:
         from .learn.training import fit_switch_condition

@@ -168,3 +168,35 @@ def test_bad_lerobot_input_is_named(tmp_path):
     (tmp_path / "meta/info.json").write_text('{"codebase_version": "v2.1", "features": {}}')
     with pytest.raises(InvalidInput, match="codebase_version 'v2.1'"):
         read_lerobot(tmp_path)
+
+
+@pytest.mark.lerobot
+def test_lerobots_own_dataset_class_loads_the_export_and_its_frames_equal_the_source(demos, tmp_path):
+    """LeRobot pins torch and rerun releases of its own, so it lives in a separate environment
+    (`make test-lerobot` builds it and names its Python in MULTIFORM_LEROBOT_PYTHON)."""
+    import os
+    import subprocess
+    import sys
+    python = os.environ.get("MULTIFORM_LEROBOT_PYTHON")
+    if not python:
+        pytest.skip("LeRobot's environment is not set up (make test-lerobot)")
+    out = tmp_path / "lerobot"
+    assert main(["demos", "export", str(demos), "--out", str(out)]) == 0
+    script = Path(__file__).with_name("lerobot_frames.py")
+    subprocess.run([python, str(script), str(out), str(tmp_path / "frames.npz")], check=True, timeout=900,
+                   env={**os.environ, "HF_HUB_OFFLINE": "1", "PYTHONPATH": ""}, stdout=sys.stderr)
+    got = np.load(tmp_path / "frames.npz", allow_pickle=False)
+    src = read_dataset(demos)
+    assert int(got["num_episodes"]) == len(src)
+    at = 0
+    for e, ep in enumerate(src.episodes):
+        n = ep.num_samples
+        sl = slice(at, at + n)
+        assert set(got["episode_index"][sl]) == {e} and np.array_equal(got["frame_index"][sl], np.arange(n))
+        # LeRobot hands frames out as float32 tensors: equal to the source rounded to float32
+        assert np.array_equal(got["observation_state"][sl], ep.obs.astype(np.float32))
+        assert np.array_equal(got["action"][sl].reshape(n, -1), ep.actions.astype(np.float32))
+        assert list(got["subtask"][sl]) == list(ep.transitions)
+        assert bool(got["next_success"][sl][-1]) == (ep.outcome == "success") and not got["next_success"][sl][:-1].any()
+        at += n
+    assert at == len(got["frame_index"])

@@ -4,7 +4,14 @@ Reads only the traces (what the robot saw and did) and the net: which transition
 which places were never visited, which conditions never held while their transition was enabled,
 which transition led into failure and which maneuver was running then, where λ had a real choice
 on the way to failure, and — with place regions — where the state left its place and which place
-it resembled when it did.
+it resembled when it did. With the mentor's demonstrations (:mod:`.mentor`) it also compares the
+robot with the mentor (:mod:`.compare`): conditions too strict or too loose for where the mentor
+switched, branches the mentor never took that lead to failure, starved weights, and limits that end
+trials the mentor's own timing says were going well.
+
+Only trials that ended as the skill decides are evidence (``EVIDENCE_OUTCOMES``: success, failure,
+or the skill's own ``max_duration`` timeout); a trial that ended for a reason outside the net — a
+fault, a diverged simulation — says nothing about the net and is left out.
 """
 
 from __future__ import annotations
@@ -18,9 +25,17 @@ import numpy as np
 
 from ..petri.net import APN
 from ..runtime.trace import Trace
+from .compare import Finding, compare_with_mentor
+from .mentor import MentorEvidence
 
 # scores(states (n, d)) -> {place: (n,) scores}; a state belongs to a place when its score >= threshold
 RegionScorer = Callable[[np.ndarray], Mapping[str, np.ndarray]]
+EVIDENCE_OUTCOMES = ("success", "failure", "timeout")
+
+
+def is_evidence(outcome: str) -> bool:
+    """Whether a trial with this outcome says something about the net."""
+    return outcome in EVIDENCE_OUTCOMES
 
 
 @dataclass
@@ -51,20 +66,24 @@ class Diagnosis:
     safer_siblings: dict[str, Counter] = field(default_factory=dict)
     exits: list[Exit] = field(default_factory=list)
     outcomes: Counter = field(default_factory=Counter)
+    findings: list[Finding] = field(default_factory=list)   # where the robot and the mentor disagree
+    mentor_fits: dict[str, dict[str, Any]] = field(default_factory=dict)   # conditions vs the mentor's switches
+    visited: set[str] = field(default_factory=set)          # places reached in the failed trials
 
     def to_json(self) -> dict[str, Any]:
         return {"trials": self.trials, "failures": self.failures, "never_fired": self.never_fired,
                 "never_visited": self.never_visited, "never_held": self.never_held,
                 "into_failure": dict(self.into_failure), "failed_from": dict(self.failed_from),
                 "active_at_failure": dict(self.active_at_failure), "risky_choices": dict(self.risky_choices),
-                "outcomes": dict(self.outcomes),
+                "outcomes": dict(self.outcomes), "findings": [f.to_json() for f in self.findings],
                 "exits": [{"trial": e.trial, "place": e.place, "tick": e.tick, "best": e.best,
                            "scores": {k: round(v, 4) for k, v in e.scores.items()}} for e in self.exits]}
 
 
 def diagnose(apn: APN, traces: Sequence[Trace], region_scores: RegionScorer | None = None,
              region_names: Sequence[str] = (), region_threshold: float = 0.5,
-             leave_scores: Mapping[str, float] | None = None) -> Diagnosis:
+             leave_scores: Mapping[str, float] | None = None, mentor: MentorEvidence | None = None,
+             succeeded_fired: Sequence[Sequence[str]] = ()) -> Diagnosis:
     """Diagnose the failed trials among ``traces`` (all run on ``apn``).
 
     ``region_scores`` scores states (columns ``region_names`` of the traces' values) against every
@@ -72,8 +91,12 @@ def diagnose(apn: APN, traces: Sequence[Trace], region_scores: RegionScorer | No
     fell below ``region_threshold``). Such a state counts as lost (no place relates to it) only if
     the state then went below ``leave_scores[p]`` of its place p (default: the same threshold) with
     still no place matching — the mentor succeeded from states just outside a region, so a catch
-    that strays a little is not a new place.
+    that strays a little is not a new place. With ``mentor`` the findings of
+    :func:`~.compare.compare_with_mentor` are added; successful trials count there, those among
+    ``traces`` and those given only by what they fired (``succeeded_fired``: practice keeps no
+    trace of a success).
     """
+    traces = [tr for tr in traces if is_evidence(tr.outcome)]
     failed = [(i, tr) for i, tr in enumerate(traces) if not tr.success]
     d = Diagnosis(trials=len(traces), failures=len(failed))
     finals = apn.final_places
@@ -108,6 +131,10 @@ def diagnose(apn: APN, traces: Sequence[Trace], region_scores: RegionScorer | No
     d.never_fired = [t for t in apn.transition_ids if t not in fired]
     d.never_visited = [p for p in apn.place_ids if p not in visited and not apn.place(p).final]
     d.never_held = [t for t in apn.transition_ids if enabled.get(t, 0) > 0 and held.get(t, 0) == 0]
+    d.visited = visited - set(apn.final_places)
+    if mentor is not None:
+        d.findings = compare_with_mentor(apn, traces, mentor, succeeded_fired)
+        d.mentor_fits = {t: fit.to_json() for t, fit in mentor.conditions.items()}
     return d
 
 

@@ -1,5 +1,12 @@
 """The practice loop: trials from P0, graded by the judges; on constant failure, diagnose and repair.
 
+A repair is on trial until the next constant failure: if no trial since it succeeded and none
+reached a place the failed trials before it never reached, it did not help — the net goes back to
+the version before it (a ``revert`` revision) and the next candidate the diagnosis supports is
+tried; a candidate is never tried twice. Trials that ended for a reason outside the net (a fault,
+a diverged simulation; see :data:`~.diagnosis.EVIDENCE_OUTCOMES`) are recorded but are no evidence:
+they neither count as failures nor enter a diagnosis.
+
 With ``learn`` (learning from practice, the paper's third form in full) the loop also
 * keeps the stays it grades successful with a margin as the laws' own training data
   (:mod:`.experience`) and refits the laws from the mentor's and its own data every
@@ -31,6 +38,8 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from scipy.special import expit
+
 from ..demos.episode import Episode, SegmentLabel
 from ..errors import InvalidInput
 from ..io import read_json, write_json
@@ -43,7 +52,7 @@ from ..petri.net import APN
 from ..petri.revision import Revision, refit_law, revert
 from ..runtime.executor import Executor
 from ..runtime.trace import Trace
-from .diagnosis import diagnose
+from .diagnosis import diagnose, is_evidence
 from .experience import DEFAULT_MARGIN, Experience, select_segments
 from .explore import ExploringLaw, law_noise
 from .repair import repair
@@ -116,6 +125,8 @@ class PracticeState:
     repairs_without_effect: int = 0
     mentor_graded: list[dict[str, Any]] = field(default_factory=list)
     watch: dict[str, Any] | None = None
+    trying: dict[str, Any] | None = None       # the repair on trial: its key, versions, what it must beat
+    tried: list[str] = field(default_factory=list)
     last_refit_trial: int = -1
     done: bool = False
     stop_reason: str = ""
@@ -123,9 +134,11 @@ class PracticeState:
 
     @property
     def streak(self) -> tuple[int, int]:
-        """(successes, failures) in a row at the end."""
+        """(successes, failures) in a row at the end; trials that are no evidence are passed over."""
         s = f = 0
         for tr in reversed(self.trials):
+            if not tr.get("evidence", True):
+                continue
             if tr["success"] and not f:
                 s += 1
             elif not tr["success"] and not s:
@@ -255,6 +268,8 @@ class Practice:
                        "clips": {c: v["count"] for c, v in trace.clips.items()},
                        "wall": round(time.perf_counter() - t0, 3),
                        "time": time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime())}
+            if not is_evidence(trace.outcome):
+                summary["evidence"] = False
             if cfg.explore > 0:
                 summary["explored"] = explores
             if cfg.learn and grade is not None:
@@ -262,7 +277,7 @@ class Practice:
                 if "revised" in summary.get("mentor", {}):
                     judges = self.model.judges()
             state.trials.append(summary)
-            if not success:
+            if not success and is_evidence(trace.outcome):
                 trace.save(self._trace_path(k))
                 state.failed_since_repair.append(k)
             state.trial += 1
@@ -469,26 +484,52 @@ class Practice:
         # every failed trial kept so far: those since the last repair are diagnosed; all of them
         # lower the leave floors, so a resumed loop lowers them exactly as an uninterrupted one did
         kept = {k: Trace.load(self._trace_path(k)) for k in range(state.trial) if self._trace_path(k).exists()}
-        traces = [kept[k] for k in state.failed_since_repair if k in kept]
         regions = self.model.regions()
         scorer = regions.scores if regions is not None else None
         names = tuple(regions.input_names) if regions is not None else ()
         leave = None
         if regions is not None:
             self.learners.include_own_stays(list(kept.values()))
-            leave = {p: float(1.0 / (1.0 + math.exp(-z))) for p, z in self.learners.leave_floors().items()}
-        d = diagnose(apn, traces, scorer, names, leave_scores=leave)
-        fix = repair(apn, d, self.learners, exhausted=frozenset(state.lambda_exhausted))
+            leave = {p: float(expit(z)) for p, z in self.learners.leave_floors().items()}   # no overflow at -inf
+
+        def diagnosis(net: APN, trials: list[int]) -> Any:
+            ok = [t["fired"] for t in state.trials if t["success"] and t["trial"] in set(trials)]
+            return diagnose(net, [kept[k] for k in trials if k in kept], scorer, names, leave_scores=leave,
+                            mentor=self.learners.mentor(net), succeeded_fired=ok)
+
+        last = max((r["after_trial"] for r in state.revisions), default=-1)
+        d = diagnosis(apn, [t["trial"] for t in state.trials if t["trial"] > last])
+        if state.trying is not None:
+            trying, state.trying = state.trying, None
+            helped = any(t["success"] for t in state.trials if t["trial"] > trying["after_trial"]) \
+                or bool(d.visited - set(trying["visited"]))
+            if not helped and self.model.version == trying["version"]:
+                target = self.model.history.version(trying["before_version"])
+                failures = [t["trial"] for t in state.trials if t["trial"] > trying["after_trial"] and not t["success"]]
+                _, rev = revert(apn, trying["before_version"], target,
+                                f"{trying['key']} did not help: {len(failures)} failed trial(s) since it, none reached a "
+                                f"place the failures before it had not; back to version {trying['before_version']} to try "
+                                f"the next candidate", {"reverted": trying["version"], "candidate": trying["key"],
+                                                       "failed_trials": failures})
+                self._record(state, rev, d.to_json())
+                apn = self.model.apn
+                d = diagnosis(apn, trying["failed"])
+        fix = repair(apn, d, self.learners, exhausted=frozenset(state.lambda_exhausted), skip=frozenset(state.tried))
         if fix is None:
             state.repairs_without_effect += 1
             state.revisions.append({"version": None, "operator": "none", "target": "", "after_trial": state.trial - 1,
-                                    "scenario": self.name, "reason": "constant failure, but no repair operator applies",
+                                    "scenario": self.name, "reason": "constant failure, but no repair operator applies"
+                                    + (f" that was not tried already ({', '.join(state.tried)})" if state.tried else ""),
                                     "diagnosis": d.to_json()})
             state.failed_since_repair = []
             return
         first = self.model.version
         for rev in fix.revisions:
-            self._record(state, rev, d.to_json())
+            self._record(state, replace(rev, evidence={**rev.evidence, "candidate": fix.key}), d.to_json())
+        state.tried.append(fix.key)
+        state.trying = {"key": fix.key, "before_version": first, "version": self.model.version,
+                        "after_trial": state.trial - 1, "visited": sorted(d.visited),
+                        "failed": list(state.failed_since_repair)}
         self._watch(state, first, self.model.version)
         ops = {r.operator for r in fix.revisions}
         if ops == {"set_lambda"}:

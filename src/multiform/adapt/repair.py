@@ -1,4 +1,19 @@
-"""The repair operators, tried in the paper's order on a diagnosis of constant failure.
+"""The repair operators, offered as candidates in the order that changes the mentor's definition least.
+
+On a diagnosis of constant failure, :func:`candidates` lists every repair the findings support, λ
+first, then conditions, then limits, then structure; the practice loop tries them one at a time,
+reverting one that does not help and taking the next (:func:`repair` makes the first that applies).
+
+From the comparison with the mentor (:mod:`.compare`):
+
+* **λ restored** for a starved branch the mentor took successfully (its choice group's mean);
+* **λ to 0** for a branch that only ever led to failure and that the mentor never took successfully;
+* **condition relearned** from the mentor's switches when the written one is too strict or too
+  loose for where the mentor switched;
+* **limit moved** to what the demonstrations show, for a give-up rule that ended trials the
+  mentor's timing says were going well, or a stop rule asking for more than the mentor ever held.
+
+The paper's operators:
 
 1. **Λ adjustment** — a transition chosen by λ over siblings at a choice point in failed trials gets
    its λ halved; its siblings share the rest (only where λ had a real choice: otherwise Λ cannot help).
@@ -12,20 +27,22 @@
 4. **New place** — when the state matches no place, a place is added for it, reached by a new
    transition, with a way back to the nearest place.
 
-Each operator returns revisions built by :mod:`multiform.petri.revision`; learned models it needs
+Each candidate's repair returns revisions built by :mod:`multiform.petri.revision`; learned models it needs
 are produced and saved through a :class:`Learners` before the revision is recorded.
 """
 
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from ..petri.net import APN
 from ..petri.revision import Revision, add_place, add_transition, set_condition, set_lambda
+from .compare import STRICT, Finding
 from .diagnosis import Diagnosis
+from .mentor import MentorEvidence
 
 
 class Learners(Protocol):
@@ -43,6 +60,9 @@ class Learners(Protocol):
     def has_switches(self, apn: APN, transition: str) -> bool:
         """Whether the demonstrations show the mentor switching into ``transition``."""
 
+    def mentor(self, apn: APN) -> MentorEvidence | None:
+        """What the demonstrations say about ``apn`` (:func:`~.mentor.mentor_evidence`), if known."""
+
 
 @dataclass
 class Repair:
@@ -51,6 +71,7 @@ class Repair:
     apn: APN
     revisions: list[Revision] = field(default_factory=list)
     summary: str = ""
+    key: str = ""                  # which candidate made it (the practice loop never retries a key)
 
 
 def _only_way(apn: APN, tid: str) -> bool:
@@ -98,9 +119,11 @@ def adjust_lambda(apn: APN, d: Diagnosis, factor: float = 0.5, exhausted: frozen
     return None
 
 
-def relearn_condition(apn: APN, d: Diagnosis, learners: Learners) -> Repair | None:
-    """Operator 2."""
+def relearn_condition(apn: APN, d: Diagnosis, learners: Learners, only: str | None = None) -> Repair | None:
+    """Operator 2 (on ``only``, if given)."""
     for tid in d.never_held:
+        if only is not None and tid != only:
+            continue
         if tid not in d.never_fired:
             continue
         t = apn.transition(tid)
@@ -197,12 +220,98 @@ def add_new_place(apn: APN, d: Diagnosis, learners: Learners, min_exits: int = 2
     return Repair(new, revs, f"added place {pid} with {', '.join(r.target for r in revs[1:])}")
 
 
-def repair(apn: APN, d: Diagnosis, learners: Learners, exhausted: frozenset[str] = frozenset()) -> Repair | None:
-    """Try the operators in order; the first that applies makes the repair. None if none applies."""
-    for op in (lambda: adjust_lambda(apn, d, exhausted=exhausted), lambda: relearn_condition(apn, d, learners),
-               lambda: add_transition_back(apn, d, learners), lambda: add_new_place(apn, d, learners)):
-        r = op()
+def restore_lambda(apn: APN, f: Finding) -> Repair:
+    """A starved branch gets its choice group's mean λ (the siblings share the rest)."""
+    group = [f.transition, *apn.siblings(f.transition)]
+    total = sum(apn.transition(t).lam for t in group)
+    value = total / len(group) if total > 0 else 1.0
+    old = apn.transition(f.transition).lam
+    new, rev = set_lambda(apn, f.transition, value, f.reason + "; λ restored to its group's mean", f.evidence)
+    return Repair(new, [rev], f"λ({f.transition}) {old:.3g} → {value:.3g}")
+
+
+def zero_lambda(apn: APN, f: Finding) -> Repair:
+    """A branch that only led to failure, and that the mentor never took successfully, gets λ 0."""
+    old = apn.transition(f.transition).lam
+    new, rev = set_lambda(apn, f.transition, 0.0, f.reason + "; λ set to 0, its siblings take its share", f.evidence)
+    return Repair(new, [rev], f"λ({f.transition}) {old:.3g} → 0")
+
+
+def relearn_from_mentor(apn: APN, f: Finding, learners: Learners) -> Repair | None:
+    """A condition too strict or too loose for where the mentor switched is relearned from those switches."""
+    if not learners.has_switches(apn, f.transition):
+        return None
+    name, evidence = learners.switch_condition(apn, f.transition)
+    new, rev = set_condition(apn, f.transition, {"model": name},
+                             f.reason + "; condition relearned from the mentor's switches", {**f.evidence, **evidence})
+    return Repair(new, [rev], f"C({f.transition}) ← learned {name} ({f.kind.replace('_', ' ')})")
+
+
+def move_limit(apn: APN, f: Finding) -> Repair:
+    """A give-up or stop rule moved to what the demonstrations show (the finding holds the new text)."""
+    new, rev = set_condition(apn, f.transition, f.condition, f.reason, f.evidence)
+    return Repair(new, [rev], f"C({f.transition}) ← {f.condition}")
+
+
+@dataclass
+class Candidate:
+    """One repair the diagnosis supports, built only when tried."""
+
+    key: str
+    stage: str                      # lambda | condition | limit | structure
+    build: Callable[[], Repair | None]
+
+
+STAGES = ("lambda", "condition", "limit", "structure")
+
+
+def candidates(apn: APN, d: Diagnosis, learners: Learners, exhausted: frozenset[str] = frozenset()
+               ) -> list[Candidate]:
+    """Every repair the diagnosis supports, least change to the mentor's definition first."""
+    by_kind: dict[str, list[Finding]] = {}
+    for f in d.findings:
+        by_kind.setdefault(f.kind, []).append(f)
+    out: list[Candidate] = []
+    add = lambda key, stage, fn: out.append(Candidate(key, stage, fn))  # noqa: E731
+    for f in by_kind.get("starved", []):
+        add(f"starved:{f.transition}", "lambda", lambda f=f: restore_lambda(apn, f))
+    for f in by_kind.get("dead_branch", []):
+        add(f"dead_branch:{f.transition}", "lambda", lambda f=f: zero_lambda(apn, f))
+    risky = [t for t, _ in d.risky_choices.most_common() if t in apn.transition_ids and apn.siblings(t)
+             and t not in exhausted and apn.transition(t).lam > 0]
+    if risky:
+        add(f"risky_choice:{risky[0]}", "lambda", lambda: adjust_lambda(apn, d, exhausted=exhausted))
+    for kind in ("too_strict", "too_loose"):
+        for f in by_kind.get(kind, []):
+            add(f"{kind}:{f.transition}", "condition", lambda f=f: relearn_from_mentor(apn, f, learners))
+    # a condition that never held but holds where the mentor switched is not what is wrong
+    fine = {t for t, fit in d.mentor_fits.items() if fit["holds_at_mentor_switches"] >= STRICT}
+    fine |= {f.transition for f in by_kind.get("stop_too_late", [])}     # its clock is what is wrong
+    strict = {f.transition for f in by_kind.get("too_strict", [])}
+    for tid in d.never_held:
+        if tid not in strict and tid not in fine:
+            add(f"never_held:{tid}", "condition", lambda tid=tid: relearn_condition(apn, d, learners, only=tid))
+    for kind in ("limit_too_tight", "stop_too_late"):
+        for f in by_kind.get(kind, []):
+            add(f"{kind}:{f.transition}", "limit", lambda f=f: move_limit(apn, f))
+    pairs = sorted({(e.place, e.best) for e in d.exits if e.best is not None})
+    if pairs:
+        add("back:" + ",".join(f"{a}>{b}" for a, b in pairs), "structure", lambda: add_transition_back(apn, d, learners))
+    lost = sorted({e.place for e in d.exits if e.best is None})
+    if lost:
+        add("new_place:" + ",".join(lost), "structure", lambda: add_new_place(apn, d, learners))
+    return out
+
+
+def repair(apn: APN, d: Diagnosis, learners: Learners, exhausted: frozenset[str] = frozenset(),
+           skip: frozenset[str] = frozenset()) -> Repair | None:
+    """The first candidate not in ``skip`` that makes a repair; None if none does."""
+    for c in candidates(apn, d, learners, exhausted):
+        if c.key in skip:
+            continue
+        r = c.build()
         if r is not None:
+            r.key = c.key
             return r
     return None
 

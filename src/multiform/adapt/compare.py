@@ -1,0 +1,340 @@
+"""Diagnosis that compares the robot with the mentor: where the net disagrees with the demonstrations.
+
+Each rule holds the robot's failed trials against :class:`~.mentor.MentorEvidence` and returns
+findings, each naming one transition, what is wrong and the evidence:
+
+* ``starved`` — λ = 0 (or under 1 % of its choice group): its condition held in failed trials but
+  it never fired, and the mentor took it successfully;
+* ``dead_branch`` — a maneuver fired in failed trials and in no successful one, that the mentor
+  never took successfully, while a sibling could take the token instead;
+* ``too_strict`` — the condition holds at few of the moments the mentor switched into it, and
+  the robot's failed trials ended waiting in its input place without firing it;
+* ``too_loose`` — the condition holds at many states where the mentor chose not to switch, and the
+  robot fired it in the failed trials;
+* ``limit_too_tight`` — a give-up rule (a transition into a failure place) ended trials that the
+  mentor's own timing or states say were still going well: the robot had stayed in the place for
+  less than the mentor's successful stays there, or at a state inside what those stays show;
+* ``stop_too_late`` — a stop rule into success asks the place to hold longer than the mentor's
+  successful stays there ever lasted, and the robot's trials ended in that place without it.
+"""
+
+from __future__ import annotations
+
+import math
+import operator
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..petri.guard import parse_guard, to_text
+from ..petri.net import APN
+from ..runtime.trace import Trace
+from .mentor import MentorEvidence, is_clock
+
+STARVED = 0.01          # λ below this share of its choice group counts as starved
+STRICT = 0.5            # a condition holding at fewer of the mentor's switch moments is too strict
+LOOSE = 0.05            # one holding at more of the mentor's non-switch states is too loose
+SLACK = 1.25            # a limit moved to the mentor's longest successful stay leaves this much room
+_GT = (operator.gt, operator.ge)
+_LT = (operator.lt, operator.le)
+
+
+@dataclass
+class Finding:
+    """One disagreement between the robot's trials and the mentor's demonstrations."""
+
+    kind: str
+    transition: str
+    reason: str
+    evidence: dict[str, Any] = field(default_factory=dict)
+    condition: str | None = None      # the moved condition, for limit findings
+
+    def to_json(self) -> dict[str, Any]:
+        out = {"kind": self.kind, "transition": self.transition, "reason": self.reason, "evidence": self.evidence}
+        if self.condition is not None:
+            out["condition"] = self.condition
+        return out
+
+
+def compare_with_mentor(apn: APN, traces: Sequence[Trace], mentor: MentorEvidence,
+                        succeeded_fired: Sequence[Sequence[str]] = ()) -> list[Finding]:
+    """The findings of every rule over ``traces`` (trials of ``apn``) and the firing sequences of
+    successful trials not among them (``succeeded_fired``)."""
+    failed = [tr for tr in traces if not tr.success]
+    if not failed:
+        return []
+    succeeded = [tr.fired() for tr in traces if tr.success] + [list(f) for f in succeeded_fired]
+    out: list[Finding] = []
+    for rule in (_starved, _dead_branches, _strictness, _limits, _late_stops):
+        out += rule(apn, failed, succeeded, mentor)
+    return out
+
+
+# -- facts about one trial ----------------------------------------------------------------------------
+
+def _end_place(apn: APN, tr: Trace) -> str | None:
+    """The non-final place the token was in when the trial ended (its last failure transition's input)."""
+    last = tr.firings[-1] if tr.firings else None
+    if last is not None and last.transition in apn.transition_ids:
+        t = apn.transition(last.transition)
+        if any(apn.place(p).final for p in t.outputs):
+            return next(iter(t.inputs), None)
+    row = tr.marking[-1] if len(tr.marking) else None
+    if row is None:
+        return None
+    for p, n in zip(tr.place_ids, row):
+        if n > 0 and p in apn.place_ids and not apn.place(p).final:
+            return p
+    return None
+
+
+def _stay(tr: Trace, place: str, tick: int) -> float:
+    """Seconds the token had been in ``place`` without a break at ``tick`` (repeats count as staying)."""
+    if place not in tr.place_ids:
+        return 0.0
+    marked = tr.marking[:, tr.place_ids.index(place)] > 0
+    tick = min(tick, len(marked) - 1)
+    start = tick
+    while start > 0 and marked[start - 1]:
+        start -= 1
+    return (tick - start) * tr.dt
+
+
+def _values_at(apn: APN, tr: Trace, tick: int, dwell_place: str | None) -> dict[str, float]:
+    """Every condition variable as the net saw it when it fired at ``tick``: the recorded row of the
+    tick before (the row of the firing tick holds the clocks after the firing), the counts before it."""
+    row = max(0, min(tick, tr.num_ticks) - 1)
+    env = {n: float(v) for n, v in zip(tr.value_names, tr.values[row])}
+    env["time"] = tick * tr.dt
+    for p in tr.place_ids:
+        env[f"dwell_{p}"] = float(tr.dwell[row, tr.place_ids.index(p)]) + (tick - row) * tr.dt
+    if dwell_place is not None:
+        env["dwell"] = env.get(f"dwell_{dwell_place}", 0.0)
+    for t in apn.transition_ids:
+        env[f"fires_{t}"] = float(sum(1 for f in tr.firings if f.transition == t and f.tick < tick))
+    return env
+
+
+def _fired_in(trs: Sequence[Trace | Sequence[str]], tid: str) -> int:
+    """In how many trials (traces or firing sequences) ``tid`` fired."""
+    return sum(tid in (tr.fired() if isinstance(tr, Trace) else tr) for tr in trs)
+
+
+def _into_final(apn: APN, tid: str, kind: str | None = None) -> bool:
+    return any(apn.place(p).final and (kind is None or apn.place(p).final == kind)
+               for p in apn.transition(tid).outputs)
+
+
+# -- the rules -----------------------------------------------------------------------------------------
+
+def _starved(apn: APN, failed: list[Trace], succeeded: list[list[str]], mentor: MentorEvidence) -> list[Finding]:
+    out = []
+    for t in apn.transitions:
+        group = [t.id, *apn.siblings(t.id)]
+        total = sum(apn.transition(g).lam for g in group)
+        if not (t.lam == 0 or (total > 0 and t.lam / total < STARVED)):
+            continue
+        held = sum(tr.held_ticks.get(t.id, 0) > 0 for tr in failed)
+        if held == 0 or _fired_in(failed, t.id) or not mentor.took_successfully(t.id):
+            continue
+        out.append(Finding("starved", t.id,
+                           f"λ({t.id}) = {t.lam:.3g} of {total:.3g} in its choice group: its condition held in {held} "
+                           f"failed trial(s) but it never fired; the mentor took it successfully "
+                           f"{mentor.took_success[t.id]} time(s)",
+                           {"lambda": t.lam, "group_total": total, "held_in_failed_trials": held,
+                            "mentor_took_successfully": mentor.took_success[t.id]}))
+    return out
+
+
+def _dead_branches(apn: APN, failed: list[Trace], succeeded: list[list[str]], mentor: MentorEvidence) -> list[Finding]:
+    out = []
+    for t in apn.transitions:
+        if t.lam == 0 or t.condition.is_learned or _into_final(apn, t.id) or mentor.took_successfully(t.id):
+            continue
+        n = _fired_in(failed, t.id)
+        if n < 2 or _fired_in(succeeded, t.id) or not any(apn.transition(s).lam > 0 for s in apn.siblings(t.id)):
+            continue
+        took_failed = mentor.took_failure.get(t.id, 0)
+        out.append(Finding("dead_branch", t.id,
+                           f"{t.id} fired in {n} failed trial(s) and in none that succeeded; the mentor never took it "
+                           f"successfully ({'only in ' + str(took_failed) + ' failed segment(s)' if took_failed else 'never at all'})"
+                           f"; its siblings {', '.join(apn.siblings(t.id))} can take the token",
+                           {"fired_in_failed_trials": n, "fired_in_successful_trials": 0,
+                            "mentor_took_successfully": 0, "mentor_took_in_failed_segments": took_failed}))
+    return out
+
+
+def _strictness(apn: APN, failed: list[Trace], succeeded: list[list[str]], mentor: MentorEvidence) -> list[Finding]:
+    out = []
+    for tid, fit in mentor.conditions.items():
+        if tid not in apn.transition_ids or apn.transition(tid).condition.is_learned:
+            continue
+        t = apn.transition(tid)
+        fired = _fired_in(failed, tid)
+        waited = sum(_end_place(apn, tr) in t.inputs for tr in failed)
+        ev = {**fit.to_json(), "fired_in_failed_trials": fired, "failed_trials": len(failed),
+              "failed_waiting_in_" + "_".join(t.inputs): waited}
+        if fit.hit < STRICT and 2 * waited >= len(failed) and 2 * fired < len(failed):
+            out.append(Finding("too_strict", tid,
+                               f"'{t.condition}' holds at {100 * fit.hit:.0f} % of the {fit.switches} moments the mentor "
+                               f"switched into {tid}; {waited} of {len(failed)} failed trials ended waiting in "
+                               f"{', '.join(t.inputs)}, {fired} fired it", ev))
+        elif fit.loose > LOOSE and 2 * fired >= len(failed):
+            out.append(Finding("too_loose", tid,
+                               f"'{t.condition}' holds at {100 * fit.loose:.1f} % of the states where the mentor chose "
+                               f"not to switch into {tid} (over {fit.negatives}); the robot fired it in {fired} of "
+                               f"{len(failed)} failed trials", ev))
+    return out
+
+
+def _atoms(tree: tuple, path: tuple = ()) -> list[tuple[tuple, tuple]]:
+    """(path, comparison) for each ``expression op constant`` comparison reachable through and/or."""
+    kind = tree[0]
+    if kind in ("and", "or"):
+        return [a for i, x in enumerate(tree[1]) for a in _atoms(x, path + (i,))]
+    if kind == "cmp" and len(tree[1]) == 1 and (tree[2][0][0] == "const") != (tree[2][1][0] == "const"):
+        return [(path, tree)]
+    return []
+
+
+def _normal(atom: tuple) -> tuple[tuple, Any, float]:
+    """An atom as (expression, operator, constant) with the constant on the right."""
+    op, (a, b) = atom[1][0], atom[2]
+    if a[0] == "const":
+        flip = {operator.lt: operator.gt, operator.le: operator.ge, operator.gt: operator.lt,
+                operator.ge: operator.le}.get(op, op)
+        return b, flip, float(a[1])
+    return a, op, float(b[1])
+
+
+def _replace(tree: tuple, path: tuple, atom: tuple) -> tuple:
+    if not path:
+        return atom
+    kind, items = tree[0], list(tree[1])
+    items[path[0]] = _replace(items[path[0]], path[1:], atom)
+    return (kind, items)
+
+
+def _with_constant(atom: tuple, value: float) -> tuple:
+    op, (a, b) = atom[1], atom[2]
+    return ("cmp", op, [("const", value), b] if a[0] == "const" else [a, ("const", value)])
+
+
+def _eval(tree: tuple, env: dict[str, float]) -> float:
+    """A guard subtree's value at one state."""
+    g = parse_guard(to_text(tree))
+    return float(g.evaluate_arrays({k: np.array([env[k]]) for k in g.variables})[0])
+
+
+def _vars(tree: tuple) -> set[str]:
+    from .mentor import _tree_variables
+    return _tree_variables(tree)
+
+
+def _limits(apn: APN, failed: list[Trace], succeeded: list[list[str]], mentor: MentorEvidence) -> list[Finding]:
+    """Give-up rules that fired where the mentor was still doing well; each held atom's constant is
+    moved: a clock scaled to the mentor's longest successful stay (with ``SLACK``), a state bound
+    moved beyond the range of the mentor's successful stays."""
+    moves: dict[str, dict[tuple, float]] = {}
+    notes: dict[str, list[dict[str, Any]]] = {}
+    for tr in failed:
+        last = tr.firings[-1] if tr.firings else None
+        if last is None or last.transition not in apn.transition_ids or not _into_final(apn, last.transition, "failure"):
+            continue
+        f = apn.transition(last.transition)
+        g = f.condition.guard
+        place = next(iter(f.inputs), None)
+        if g is None or place is None:
+            continue
+        stay = _stay(tr, place, last.tick)
+        mentor_stay = mentor.stay_seconds.get(place)
+        env = _values_at(apn, tr, last.tick, place)
+        for path, atom in _atoms(g.tree):
+            expr, op, c = _normal(atom)
+            names = _vars(expr)
+            if not names or _eval(atom, env) <= 0:
+                continue
+            if all(is_clock(n) for n in names):
+                if mentor_stay is None or op not in _GT or stay <= 0 or stay >= mentor_stay:
+                    continue
+                new = c * SLACK * mentor_stay / stay
+                if any(n.startswith("fires_") for n in names):
+                    new = float(math.ceil(new))
+                notes.setdefault(f.id, []).append({"atom": to_text(atom), "robot_stay_s": round(stay, 3),
+                                                   "mentor_longest_successful_stay_s": round(mentor_stay, 3)})
+            elif not any(is_clock(n) for n in names):
+                rng = mentor.stay_range(apn, place, expr)
+                v = _eval(expr, env)
+                if rng is None or not math.isfinite(v):
+                    continue
+                lo, hi = rng
+                if op in _GT and v <= hi:
+                    new = hi + 0.1 * max(abs(hi), 1e-3)
+                elif op in _LT and v >= lo:
+                    new = lo - 0.1 * max(abs(lo), 1e-3)
+                else:
+                    continue
+                notes.setdefault(f.id, []).append({"atom": to_text(atom), "robot_value": round(v, 4),
+                                                   "mentor_successful_range": [round(lo, 4), round(hi, 4)]})
+            else:
+                continue
+            new = float(f"{new:.4g}")
+            best = moves.setdefault(f.id, {})
+            old = best.get(path)
+            best[path] = new if old is None else (max(old, new) if op in _GT else min(old, new))
+    out = []
+    for fid, changes in moves.items():
+        tree = apn.transition(fid).condition.guard.tree
+        for path, value in changes.items():
+            atom = _get(tree, path)
+            tree = _replace(tree, path, _with_constant(atom, value))
+        text = to_text(tree)
+        n = len(notes[fid])
+        out.append(Finding("limit_too_tight", fid,
+                           f"the give-up rule '{apn.transition(fid).condition}' ended {n} failed trial(s) where the "
+                           f"mentor's successful stays were still going; moved to '{text}'",
+                           {"trials": n, "examples": notes[fid][:3]}, condition=text))
+    return out
+
+
+def _get(tree: tuple, path: tuple) -> tuple:
+    for i in path:
+        tree = tree[1][i]
+    return tree
+
+
+def _late_stops(apn: APN, failed: list[Trace], succeeded: list[list[str]], mentor: MentorEvidence) -> list[Finding]:
+    """Stop rules into success whose clock asks for more than the mentor's successful stays lasted."""
+    out = []
+    for s in apn.transitions:
+        g = s.condition.guard
+        place = next(iter(s.inputs), None)
+        if g is None or place is None or not _into_final(apn, s.id, "success") or _fired_in(failed, s.id):
+            continue
+        mentor_stay = mentor.stay_seconds.get(place)
+        if mentor_stay is None:
+            continue
+        waited = [tr for tr in failed if _end_place(apn, tr) == place
+                  and _stay(tr, place, tr.num_ticks - 1) > mentor_stay]
+        if 2 * len(waited) < len(failed):
+            continue
+        tree, changed = g.tree, []
+        for path, atom in _atoms(g.tree):
+            expr, op, c = _normal(atom)
+            names = _vars(expr)
+            if names and all(is_clock(n) for n in names) and not any(n.startswith("fires_") for n in names) \
+                    and op in _GT and c > mentor_stay:
+                tree = _replace(tree, path, _with_constant(atom, float(f"{mentor_stay:.4g}")))
+                changed.append(to_text(atom))
+        if not changed:
+            continue
+        text = to_text(tree)
+        out.append(Finding("stop_too_late", s.id,
+                           f"'{s.condition}' asks {place} to last longer than the mentor's successful stays there "
+                           f"({mentor_stay:.2f} s at most); {len(waited)} of {len(failed)} failed trials stayed longer "
+                           f"and never stopped; moved to '{text}'",
+                           {"mentor_longest_successful_stay_s": round(mentor_stay, 3), "trials": len(waited),
+                            "atoms": changed}, condition=text))
+    return out
