@@ -40,7 +40,8 @@ def test_the_tutorial_runs_end_to_end_with_a_repair(tmp_path):
     res = subprocess.run([sys.executable, "run.py", str(tmp_path / "run")], cwd=EXAMPLE, capture_output=True,
                          text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-2000:]
-    assert re.search(r"revision 1: set_condition t1 — t1 never fired", res.stdout), res.stdout
+    assert re.search(r"revision 1: set_condition t1 — .*condition relearned from the mentor's switches", res.stdout), \
+        res.stdout
     ok, n = map(int, re.search(r"success (\d+)/(\d+)", res.stdout).groups())
     assert n == 20 and ok >= 18
     # a mentor that never fails: train says the judges are uninformative, in one line each, no warnings
