@@ -62,3 +62,14 @@ def test_a_net_runs_a_foreign_env_in_direct_command_mode():
 def test_a_control_rate_that_is_not_the_env_step_is_refused():
     with pytest.raises(InvalidInput, match=r"control_rate: .*ticks at 1000 Hz.*every 1 s.*control_rate: 1"):
         Executor(parse_skill(skill(1000.0)), mountain_car(dt=1.0), {"right": Push()})
+
+
+def test_terminal_false_leaves_the_end_of_a_trial_to_the_net():
+    """MountainCar terminates at its goal; with terminal=False the env's own end is not passed on."""
+    for terminal in (True, False):
+        env = NamedEnv(gym.make("MountainCarContinuous-v0"), ("position", "velocity"), ("force",), dt=1.0,
+                       terminal=terminal)
+        env.reset(seed=0)
+        env.unwrapped.state = np.array([0.449, 0.05])
+        _, _, terminated, _, _ = env.step(np.array([1.0], np.float32))
+        assert terminated is terminal
