@@ -191,8 +191,8 @@ def cmd_record(args: argparse.Namespace) -> int:
     from .demos.dataset import write_dataset
     from .demos.record import record_many
     from .lock import check_writable, exclusive
-    from .tasks import get_task
-    task = get_task(args.task)
+    from .task import load_task
+    task = load_task(args.task)
     out = Path(args.out)
     if out.exists() and not args.overwrite:
         raise InvalidInput("exists; add --overwrite to replace it, or choose another file", file=str(out))
@@ -202,7 +202,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     seeds = [args.seed * 100_000 + i for i in range(args.demos)]
     with exclusive(out):
         with _bar(len(seeds), f"recording {args.task} demos") as bar:
-            eps = record_many(args.task, seeds, task.DEMO_ENV_KWARGS, workers=args.workers,
+            eps = record_many(task.spec or task, seeds, task.DEMO_ENV_KWARGS, workers=args.workers,
                               progress=lambda i, n: bar.update(1), ray=args.ray)
         write_dataset(out, eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)
     ok = sum(e.outcome == "success" for e in eps)
@@ -262,8 +262,11 @@ def cmd_teleop(args: argparse.Namespace) -> int:
 
     from .demos.dataset import read_dataset, write_dataset
     from .envs.arm_pendulum import ArmPendulumEnv
-    from .tasks import get_task
-    task = get_task(args.task)
+    from .task import load_task
+    task = load_task(args.task)
+    if task.ENV_ID != "multiform/ArmPendulum-v0":
+        raise InvalidInput(f"teleop drives the arm of multiform/ArmPendulum-v0; {args.task} runs {task.ENV_ID}",
+                           element=args.task)
     out = Path(args.out)
     for flag, value in (("--time-scale", args.time_scale), ("--max-duration", args.max_duration)):
         if not value > 0:
@@ -342,12 +345,17 @@ def cmd_train(args: argparse.Namespace) -> int:
     from .job import train_model
     from .model import SkillModel, staged_model_dir
     from .petri.skillfile import load_skill
-    from .tasks import TASKS, get_task
+    from .task import load_task, task_for_env
+    task = load_task(args.task) if args.task else None      # first: a user's task registers its env
     load_skill(args.skill)
     ds = read_dataset(args.demos)
     inverse, env_kwargs = None, ds.env_kwargs
     if args.inverse_model:            # decided before anything is written
-        task = next((get_task(t) for t in TASKS if get_task(t).ENV_ID == ds.env_name), None)
+        if task is None:
+            try:
+                task = task_for_env(ds.env_name)
+            except InvalidInput:
+                task = None
         if task is None or getattr(task, "train_inverse_model", None) is None:
             raise InvalidInput(f"no inverse-model trainer for {ds.env_name}; train without --inverse-model",
                                element="--inverse-model")
@@ -363,10 +371,11 @@ def cmd_train(args: argparse.Namespace) -> int:
 def cmd_practice(args: argparse.Namespace) -> int:
     from .adapt.practice import Practice, PracticeConfig
     from .model import SkillModel
-    from .tasks import get_task, task_for_env
+    from .task import load_task, task_for_env
+    task = load_task(args.task) if args.task else None      # first: a user's task registers its env
     model = SkillModel(args.model, env_modules=args.env_module)
-    args.task = args.task or task_for_env(model.manifest["env"])
-    task = get_task(args.task)
+    task = task or task_for_env(model.manifest["env"])
+    args.task = task.TASK
     scen = {s["name"]: s for s in task.scenarios()}
     if args.scenario not in scen:
         raise InvalidInput(f"unknown scenario {args.scenario!r}; {args.task} has: {', '.join(scen)}",
@@ -399,10 +408,11 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from .io import write_json
     from .lock import check_writable
     from .model import SkillModel
-    from .tasks import get_task, task_for_env
+    from .task import load_task, task_for_env
+    task = load_task(args.task) if args.task else None      # first: a user's task registers its env
     model = SkillModel(args.model, env_modules=args.env_module)
-    name = args.task or task_for_env(model.manifest["env"])
-    task = get_task(name)
+    task = task or task_for_env(model.manifest["env"])
+    name = task.TASK
     if args.version is not None:
         model.history.version(args.version)          # refuses a version the model does not have
     model.verify()
@@ -415,7 +425,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     variant = Variant(f"{model.apn.name} v{model.version if args.version is None else args.version}",
                       str(Path(args.model).resolve()), net_version=args.version)
     with _bar(len(specs), f"evaluating {name}") as bar:
-        res = evaluate(name, variant, specs, workers=args.workers, progress=lambda i, n: bar.update(1), ray=args.ray)
+        res = evaluate(task.spec or task, variant, specs, workers=args.workers, progress=lambda i, n: bar.update(1),
+                       ray=args.ray)
     pushed = f"; pushed {res['pushed']['successes']}/{res['pushed']['trials']}" if res.get("pushed") else ""
     print(f"success {100 * res['rate']:.1f} % ({res['successes']}/{res['trials']}; 95 % CI {100 * res['low']:.1f}-"
           f"{100 * res['high']:.1f} %){pushed}; the robot's own verdict agreed on {100 * res['agreement']:.1f} %"
@@ -559,7 +570,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_net_import)
 
     p = sub.add_parser("record", help="record scripted-mentor demonstrations of a task (HDF5)")
-    p.add_argument("task", choices=["pendulum", "nunchaku"])
+    p.add_argument("task", help="a bundled task (pendulum, nunchaku), an installed one, package.module:NAME or path/to/file.py:NAME")
     p.add_argument("--demos", type=_count(1, 1000), default=40, help="number of demonstrations")
     p.add_argument("--out", "-o", required=True, help="output .h5 file")
     p.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
@@ -598,7 +609,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "you are executing with the number keys or joystick buttons (0-6: t0-t6), end "
                                    "with Esc, then label every segment s (success) or f (failure). The "
                                    "demonstration is written to --out, or appended with --append.")
-    p.add_argument("task", choices=["pendulum"])
+    p.add_argument("task", help="the task (its env must be multiform/ArmPendulum-v0: pendulum)")
     p.add_argument("--out", "-o", required=True, help="demonstration file (.h5)")
     p.add_argument("--append", action="store_true", help="add the demonstration to an existing file")
     g = p.add_mutually_exclusive_group()
@@ -632,13 +643,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("demos", help="demonstration file (.h5)")
     p.add_argument("--out", "-o", required=True, help="model directory")
     p.add_argument("--inverse-model", action="store_true", help="also learn the auxiliary inverse model")
+    p.add_argument("--task", default=None, help="the task (default: the one whose env recorded the demos); "
+                                                "package.module:NAME or path/to/file.py:NAME for your own")
     p.add_argument("--seed", type=_count(0, MAX_SEED), default=0)
     p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("practice", help="practise a trained skill; repair the net on constant failure")
     p.add_argument("model", help="model directory")
-    p.add_argument("--task", default=None, choices=["pendulum", "nunchaku"],
-                   help="the task (default: the one whose env the model runs)")
+    p.add_argument("--task", default=None,
+                   help="the task (default: the bundled or installed one whose env the model runs); "
+                        "package.module:NAME or path/to/file.py:NAME for your own")
     p.add_argument("--scenario", default="a_strict", help="the task's practice scenario")
     p.add_argument("--out", help="practice folder (default MODEL/practice/SCENARIO)")
     p.add_argument("--max-trials", type=_count(1, 100_000), default=30)
@@ -654,8 +668,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("evaluate", help="run a trained model on the task's evaluation trials; success with its "
                                         "95 % interval, the pushed split, the robot's own verdict")
     p.add_argument("model", help="model directory")
-    p.add_argument("--task", default=None, choices=["pendulum", "nunchaku"],
-                   help="the task (default: the one whose env the model runs)")
+    p.add_argument("--task", default=None,
+                   help="the task (default: the bundled or installed one whose env the model runs); "
+                        "package.module:NAME or path/to/file.py:NAME for your own")
     p.add_argument("--trials", type=_count(1, 1_000_000), default=200)
     p.add_argument("--seed", type=_count(0, 40_000), default=0, help="which trials (the main job's evaluation: 0)")
     p.add_argument("--push-fraction", type=_fraction, default=0.5,
@@ -671,7 +686,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("demo", help="the main job: record, train, practise with repair, evaluate, report")
-    p.add_argument("task", choices=["pendulum", "nunchaku"])
+    p.add_argument("task", help="a bundled task (pendulum, nunchaku), an installed one, package.module:NAME or path/to/file.py:NAME")
     p.add_argument("--out", "-o", required=True, help="run folder")
     p.add_argument("--demos", type=_count(1, 1000), default=None,
                    help="demonstrations (default: the task's DEMOS, 40)")

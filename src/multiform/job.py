@@ -40,7 +40,7 @@ from .model import SkillModel, staged_model_dir
 from .petri.net import APN
 from . import __version__
 from .stats import evaluation_split, rate
-from .tasks import get_task
+from .task import Task, load_task
 
 Log = Callable[[str], None]
 
@@ -68,9 +68,9 @@ class JobConfig:
 class Job:
     """One run folder for one task."""
 
-    def __init__(self, task: str | ModuleType, out: str | Path, config: JobConfig | None = None,
+    def __init__(self, task: str | Task | ModuleType, out: str | Path, config: JobConfig | None = None,
                  log: Log = print, progress: bool = True, view: str | None = None):
-        self.task = get_task(task) if isinstance(task, str) else task
+        self.task = load_task(task)
         self.out = Path(out)
         self.cfg = config or JobConfig()
         if self.cfg.demos is None:
@@ -80,6 +80,12 @@ class Job:
         self.view = view            # None, or where the picked trials stream (see multiform.view.stream.viewer_url)
         self.timings: dict[str, float] = {}
         self.metrics: dict[str, Any] = {}
+
+    @property
+    def _worker_task(self) -> Any:
+        """What workers load the task from: its spec if it has one (spawned and Ray workers need
+        it), else the task itself (forked workers inherit it)."""
+        return self.task.spec or self.task
 
     def _bar(self, total: int, desc: str, unit: str = "trial", position: int | None = None) -> tqdm:
         return tqdm(total=total, desc=desc, unit=unit, position=position,
@@ -106,7 +112,7 @@ class Job:
                 self.log(f"  reusing {path}")
                 return path
         with self._bar(len(seeds), "recording demos", unit="demo") as bar:
-            eps = record_many(self.task.TASK, seeds, self.task.DEMO_ENV_KWARGS, workers=self.cfg.workers,
+            eps = record_many(self._worker_task, seeds, self.task.DEMO_ENV_KWARGS, workers=self.cfg.workers,
                               progress=lambda i, n: bar.update(1), start_method=self.cfg.start_method,
                               ray=self.cfg.ray)
         write_dataset(path, eps, self.task.SKILL, self.task.ENV_ID, self.task.DEMO_ENV_KWARGS,
@@ -128,9 +134,11 @@ class Job:
             return SkillModel(final)
         # built beside and moved into place when complete; a killed job resumes the partial one
         with staged_model_dir(final, keep_on_error=True) as partial:
+            # a task without an inverse-model trainer runs in direct-command mode
+            use_inverse = self.cfg.inverse_model and self.task.train_inverse_model is not None
             model = SkillModel.create(partial, self.task.SKILL, demos, self.task.ENV_ID,
-                                      self.task.robot_env_kwargs(self.cfg.inverse_model))
-            inverse = self.task.train_inverse_model if self.cfg.inverse_model else None
+                                      self.task.robot_env_kwargs(use_inverse))
+            inverse = self.task.train_inverse_model if use_inverse else None
             train_model(model, seed=self.cfg.seed, log=self.log, inverse_trainer=inverse, beside=self.cfg.workers > 1)
         return SkillModel(final)
 
@@ -215,7 +223,7 @@ class Job:
         t0 = time.perf_counter()
         demos = self._stage("record", self.record)
         model = self._stage("train", lambda: self.train(demos))
-        with Evaluator(self.task.TASK, self.cfg.workers, start_method=self.cfg.start_method, ray=self.cfg.ray) as ev:
+        with Evaluator(self._worker_task, self.cfg.workers, start_method=self.cfg.start_method, ray=self.cfg.ray) as ev:
             # baselines built from the trained model alone run while the robot practises, on the
             # core practice leaves idle; the others once practice has revised the net
             early = not getattr(self.task, "ABLATIONS_AFTER_PRACTICE", True)
@@ -235,7 +243,7 @@ class Job:
             for r in s["revisions"]:
                 revisions.append({**r, "scenario": name})
         m = self.metrics
-        m.update(skill=self.task.SKILL, task=self.task.TASK, description=self.task.DESCRIPTION,
+        m.update(skill=self.task.SKILL, task=self.task.TASK, task_spec=self.task.spec or self.task.TASK, description=self.task.DESCRIPTION,
                  config=asdict(self.cfg), demos={"count": len(ds), "file": "demos.h5", "mentor_success_rate": rate(ok, len(ds)),
                                                  **{k: v for k, v in ds.summary().items() if k in ("samples", "samples_per_transition", "duration_s")}},
                  training=model.manifest.get("training", {}),

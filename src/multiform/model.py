@@ -340,7 +340,7 @@ class SkillModel:
         apn = apn or self.apn
         inverse = self.inverse_model() if use_inverse_model else None
         if inverse is None and self.needs_inverse_model(self.manifest) and \
-                tuple(env.action_space.shape) != (len(env.unwrapped.command_names),):
+                tuple(env.action_space.shape) != (len(env.get_wrapper_attr("command_names")),):
             raise InvalidInput("the env takes joint torques; a run without the inverse model needs the env in "
                                "command mode", file=str(self.path / "model.json"), element="env_kwargs")
         return Executor(apn, env, self.laws(apn), self.conditions(), inverse, net_version=self.version)

@@ -44,21 +44,26 @@ class Variant:
 _WORKER: dict[str, Any] = {}
 
 
-def _init(task: str, env_overrides: dict[str, Any]) -> None:
+def _init(task: Any, env_overrides: dict[str, Any]) -> None:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     from threadpoolctl import threadpool_limits
 
-    from ..tasks import get_task
+    from ..task import load_task
     threadpool_limits(1)
     _WORKER.clear()
-    _WORKER.update(task=get_task(task), env_overrides=env_overrides, variants={}, key=(task, repr(env_overrides)))
+    _WORKER.update(task=load_task(task) if isinstance(task, str) else task, env_overrides=env_overrides,
+                   variants={}, key=(_task_key(task), repr(env_overrides)))
 
 
 def ensure_worker(task: str, env_overrides: dict[str, Any]) -> None:
     """Set this process up for trials of ``task`` unless it already is (a Ray worker runs many)."""
-    if _WORKER.get("key") != (task, repr(env_overrides)):
+    if _WORKER.get("key") != (_task_key(task), repr(env_overrides)):
         _close()
         _init(task, env_overrides)
+
+
+def _task_key(task: Any) -> str:
+    return task if isinstance(task, str) else str(getattr(task, "TASK", id(task)))
 
 
 def _variant(variant: Variant) -> dict[str, Any]:
@@ -126,13 +131,15 @@ class Evaluator:
     submitted. A job submits the trials it can before it has everything (the baselines' while the
     robot still practises, on the core practice leaves idle) and collects them when it needs them.
 
-    Use as a context manager; ``workers`` ≤ 1 runs each trial in this process when collected.
+    ``task`` is a :class:`~multiform.task.Task` or its name (:func:`~multiform.task.load_task`); a
+    task defined in memory reaches forked workers, while spawned and Ray workers need its name. Use
+    as a context manager; ``workers`` ≤ 1 runs each trial in this process when collected.
     ``start_method`` is the local pool's (default: fork on Linux, spawn elsewhere). With ``ray``
     (``auto``, ``local`` or a cluster address) the trials are Ray tasks instead, on every CPU of
     the cluster (``local`` starts one with ``workers`` CPUs); the records are the same.
     """
 
-    def __init__(self, task: str, workers: int = 2, env_overrides: dict[str, Any] | None = None,
+    def __init__(self, task: Any, workers: int = 2, env_overrides: dict[str, Any] | None = None,
                  start_method: str | None = None, ray: str | None = None):
         self.task, self.workers = task, workers
         self.env_overrides = dict(env_overrides or {})
@@ -200,7 +207,7 @@ class _Deferred:
         return out
 
 
-def evaluate(task: str, variant: Variant, trials: Sequence[TrialSpec], workers: int = 2,
+def evaluate(task: Any, variant: Variant, trials: Sequence[TrialSpec], workers: int = 2,
              env_overrides: dict[str, Any] | None = None,
              progress: Callable[[int, int], None] | None = None,
              start_method: str | None = None, ray: str | None = None) -> dict[str, Any]:

@@ -8,6 +8,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from ..runtime.contract import env_contract
 from .episode import Episode, Mentor
 
 
@@ -52,10 +53,9 @@ def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, A
     during the demo; the episode's reset options then hold the pulses applied (``disturbances``,
     empty if the push never came), so replaying them from the seed reproduces the demo.
     """
-    base = env.unwrapped
+    obs_names, cmd_names, dt = env_contract(env)
     obs, info = env.reset(seed=seed, options=options)
     mentor.reset(obs, np.random.default_rng([seed, 1]))
-    dt = float(base.dt)
     obs_rows, act_rows, tags = [], [], []
     t = 0.0
     limit = max_steps if max_steps is not None else 10**9
@@ -76,7 +76,7 @@ def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, A
         options["disturbances"] = list(options.get("disturbances") or []) + push.pulses
     episode = Episode(
         obs=np.asarray(obs_rows), actions=np.asarray(act_rows), transitions=np.asarray(tags, dtype=str),
-        observation_names=tuple(base.observation_names), command_names=tuple(base.command_names),
+        observation_names=obs_names, command_names=cmd_names,
         dt=dt, seed=seed, reset_options=options)
     episode.labels = list(mentor.label(episode))
     # the mentor's verdict on the whole attempt where it gives one (a pushed demo that the mentor
@@ -91,25 +91,29 @@ def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, A
 _WORKER: dict[str, Any] = {}
 
 
-def _init(task: str, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) -> None:
+def _init(task: Any, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) -> None:
     from threadpoolctl import threadpool_limits
 
     import multiform.envs  # noqa: F401  (registers the envs; a spawned worker has not imported them)
 
-    from ..tasks import get_task
+    from ..task import load_task
     threadpool_limits(1)
-    t = get_task(task)
+    t = load_task(task) if isinstance(task, str) else task
     _WORKER.update(task=t, env=gym.make(t.ENV_ID, **env_kwargs), mentor=t.make_mentor(**mentor_kwargs),
-                   key=(task, repr(env_kwargs), repr(mentor_kwargs)))
+                   key=(_task_key(task), repr(env_kwargs), repr(mentor_kwargs)))
 
 
 def ensure_worker(task: str, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) -> None:
     """Set this process up to record ``task`` unless it already is (a Ray worker records many)."""
-    if _WORKER.get("key") != (task, repr(env_kwargs), repr(mentor_kwargs)):
+    if _WORKER.get("key") != (_task_key(task), repr(env_kwargs), repr(mentor_kwargs)):
         if "env" in _WORKER:
             _WORKER["env"].close()
         _WORKER.clear()
         _init(task, env_kwargs, mentor_kwargs)
+
+
+def _task_key(task: Any) -> str:
+    return task if isinstance(task, str) else str(getattr(task, "TASK", id(task)))
 
 
 def demo_push(task: Any, seed: int) -> PushDuring | None:
@@ -124,12 +128,13 @@ def _record(seed: int) -> Episode:
     return record_episode(w["env"], w["mentor"], seed, w["task"].demo_options(seed), push=demo_push(w["task"], seed))
 
 
-def record_many(task: str, seeds: list[int], env_kwargs: dict[str, Any] | None = None,
+def record_many(task: Any, seeds: list[int], env_kwargs: dict[str, Any] | None = None,
                 mentor_kwargs: dict[str, Any] | None = None, workers: int = 1,
                 progress: Any = None, start_method: str | None = None, ray: str | None = None) -> list[Episode]:
     """Record one demonstration per seed with the task's scripted mentor, on ``workers`` processes
     (``start_method``: see :func:`multiform.parallel.mp_context`), or as Ray tasks with ``ray``
-    (``auto``, ``local`` or a cluster address).
+    (``auto``, ``local`` or a cluster address). ``task`` is a :class:`~multiform.task.Task` or what
+    :func:`~multiform.task.load_task` reads (spawned and Ray workers need the latter).
 
     ``progress`` is called with (done, total) after each demo. The result is in seed order and does
     not depend on the number of workers nor on where they run.

@@ -8,7 +8,8 @@ Every env here exposes ``observation_names`` (one name per observation entry) an
 ``command_names`` (one name per entry of the end-effector command), so that a skill file can name
 its state variables and the library never needs to know which env it drives.
 
-Importing this package also picks MuJoCo's offscreen renderer (:mod:`multiform.envs.rendering`).
+Importing this package registers the arm's servo for its inverse model
+(:mod:`multiform.envs.arm_servo`) and picks MuJoCo's offscreen renderer (:mod:`multiform.envs.rendering`).
 Both envs step 1 ms of physics per call, so ``render_fps`` is 1000 (a video of every frame plays in
 real time), and are registered with a time limit (``max_episode_steps``) that a ``gymnasium.make``
 argument overrides.
@@ -17,6 +18,15 @@ argument overrides.
 from gymnasium.envs.registration import register, registry
 
 from .rendering import BACKEND as GL_BACKEND  # noqa: F401  (sets MUJOCO_GL before mujoco is imported)
+from ..learn.servos import register_servo  # noqa: E402
+
+
+def _arm_pendulum_servo():
+    from .arm_servo import arm_pendulum_servo
+    return arm_pendulum_servo()
+
+
+register_servo("arm_pendulum", _arm_pendulum_servo)
 
 ARM_PENDULUM_STEPS = 60_000      # 60 s, a skill's default max_duration
 NUNCHAKU_STEPS = 15_000          # 15 s, the env's own default max_duration

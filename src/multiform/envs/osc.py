@@ -63,7 +63,7 @@ _Q0, _QD0 = _I["q1"], _I["qd1"]
 
 class Gains(NamedTuple):
     """Gains and limits of the task-space servo (see the module docstring). A named tuple, so the
-    compiled inverse-model features (:mod:`multiform.learn.servos`) can take it as a constant."""
+    compiled inverse-model features (:mod:`multiform.envs.arm_servo`) can take it as a constant."""
 
     kv: float = 30.0
     wall: float = 12.0

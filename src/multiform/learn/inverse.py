@@ -16,16 +16,16 @@ fails (0/12 trials, against 12/12 with the load modelled). The linear part carri
 extrapolation sane; its basis is physical: ``q, q̇, a`` and the load's features (for a pendulum
 gravity, centripetal and θ̈-coupling terms in ``θ, ω`` and the pivot's acceleration); the GP (:class:`~.gp.GPLaw`) picks up the curvature.
 
-Servos are registered by name (:data:`SERVOS`) with the load features they need, so a saved model
-names its servo and loading it can never run code from the file.
+Servos are registered by name (:data:`~.servos.SERVOS`, filled by the package of the robot that has
+the servo, e.g. :mod:`multiform.envs`) with the load features they need, so a saved model names its
+servo and loading it can never run code from the file.
 """
 
 from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -35,35 +35,10 @@ from ..errors import InvalidInput
 from ..io import load_npz, save_npz
 from .compiled import gp_mean_one
 from .gp import GPLaw
+from .servos import SERVOS, Servo, register_servo  # noqa: F401  (the registry, filled by the robots' packages)
 
 KIND = "inverse_model"
 VERSION = 2                     # 2: the residual GP's metadata nested under "gp"
-
-
-@dataclass(frozen=True)
-class Servo:
-    """A robot's fixed maneuver servo and the load features its inverse model reads.
-
-    ``load`` and ``basis`` take a math module and return a tuple of features: called with ``numpy``
-    on the columns of many rows (fitting) and compiled into ``features`` for one state at the
-    control rate — one formula for both (:mod:`.servos`). ``features(obs, command)`` returns the
-    GP's inputs ``[q, q̇, load, a]`` followed by the linear features ``[q, q̇, a, basis]``, ``a``
-    the servo's desired task acceleration for the command.
-    """
-
-    features: Callable[[np.ndarray, tuple], np.ndarray]
-    observation_names: tuple[str, ...]
-    load: Callable[[Any, Sequence, Sequence], tuple]             # (math|numpy, obs, a) -> GP load inputs
-    basis: Callable[[Any, Sequence, Sequence], tuple]            # (math|numpy, obs, a) -> linear load features
-
-
-def _arm_pendulum_servo() -> Servo:
-    from ..envs.osc import OBSERVATION_NAMES
-    from .servos import arm_pendulum_basis, arm_pendulum_features, arm_pendulum_load
-    return Servo(arm_pendulum_features, OBSERVATION_NAMES, arm_pendulum_load, arm_pendulum_basis)
-
-
-SERVOS: dict[str, Callable[[], Servo]] = {"arm_pendulum": _arm_pendulum_servo}
 
 
 class InverseDynamicsModel(BaseEstimator):

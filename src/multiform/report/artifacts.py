@@ -134,7 +134,7 @@ def rebuild(run_dir: str | Path, view: bool = False) -> Path:
     run = Path(run_dir)
     metrics = read_json(run / "metrics.json")
     cfg = JobConfig(**{k: v for k, v in metrics.get("config", {}).items() if k in JobConfig.__dataclass_fields__})
-    job = Job(metrics["task"], run, cfg, log=lambda s: None, progress=False)
+    job = Job(metrics.get("task_spec", metrics["task"]), run, cfg, log=lambda s: None, progress=False)
     job.metrics = metrics
     trials = read_json(run / "evaluation_trials.json")
     main = {"trials_detail": next(iter(trials.values()), [])}

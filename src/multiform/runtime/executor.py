@@ -7,8 +7,9 @@ env steps. The executor reads only the env's observations (the robot's own senso
 looks at simulator internals, except to keep poses for a video when asked; the env's last ``info``
 goes into the trace (``Trace.final_info``) for the experimenter's physical success check only.
 
-Works on any env that exposes ``observation_names`` and ``command_names`` (on ``env.unwrapped``)
-matching the skill's variables and commands. A state beyond the skill's divergence threshold, or an
+Works on any env that meets the env contract (:mod:`.contract`): ``observation_names``,
+``command_names`` and ``dt`` (read through the wrapper chain) matching the skill's variables,
+commands and control rate. A state beyond the skill's divergence threshold, or an
 env that terminates on divergence, ends the trial as ``diverged`` (a failure of the skill). A
 non-finite value anywhere in the tick (an observation, a law's output, a torque, or a simulator
 that reset on bad values) ends it at once as a ``fault``: the value never reaches the simulator,
@@ -31,6 +32,7 @@ import numpy as np
 from ..errors import InvalidInput
 from ..petri.firing import LearnedCondition, NetRunner
 from ..petri.net import APN
+from .contract import check_control_rate, env_contract
 from .safety import Saturator
 from .trace import Trace
 
@@ -72,17 +74,16 @@ class Executor:
 
     ``laws`` maps law names to fitted laws; ``learned`` maps learned-condition names to models;
     with an ``inverse_model`` the env must take joint torques, without one it must take the
-    end-effector command itself.
+    end-effector command itself (the two action modes of :mod:`.contract`).
     """
 
     def __init__(self, apn: APN, env: gym.Env, laws: Mapping[str, Law],
                  learned: Mapping[str, LearnedCondition] | None = None,
                  inverse_model: InverseModel | None = None, net_version: int = 0):
-        base = env.unwrapped
         self.apn, self.env, self.laws, self.inverse_model = apn, env, dict(laws), inverse_model
         self.net_version = net_version
-        self.obs_names = tuple(base.observation_names)
-        self.cmd_names = tuple(base.command_names)
+        self.obs_names, self.cmd_names, self.dt = env_contract(env)
+        check_control_rate(apn.control_rate, self.dt)
         missing = [c for c in apn.commands if c not in self.cmd_names]
         if missing:
             raise InvalidInput(f"the env has no command(s) {', '.join(missing)}", element="commands")
@@ -90,7 +91,6 @@ class Executor:
         absent = sorted(used - set(self.laws))
         if absent:
             raise InvalidInput(f"no fitted law for {', '.join(absent)}", element="laws")
-        self.dt = float(base.dt)
         self.runner = NetRunner(apn, self.obs_names, learned)
         slots = self.runner.slots
         self._n_state = len(apn.variables)
