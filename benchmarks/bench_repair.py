@@ -149,14 +149,9 @@ def faulty_model(base: Path, task: str, kind: Kind | None, strength: Any, folder
     src = SkillModel(base)
     m = src.manifest
     model = SkillModel.create(folder / "model", skill, m["demos"], m["env"], m.get("env_kwargs", {}))
-    for sub in ("laws", "judges"):
-        (model.path / sub).mkdir(exist_ok=True)
-        for f in (src.path / sub).glob("*.npz"):
-            if sub != "laws" or f.stem in data["laws"]:
-                shutil.copyfile(f, model.path / sub / f.name)
-    for name in ("regions.npz", "inverse_model.npz", "labels.jsonl"):
-        if (src.path / name).exists():
-            shutil.copyfile(src.path / name, model.path / name)
+    model.adopt(src, ("law", "judge", "regions", "inverse_model"))
+    if (src.path / "labels.jsonl").exists():
+        shutil.copyfile(src.path / "labels.jsonl", model.path / "labels.jsonl")
     return model
 
 

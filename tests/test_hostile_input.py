@@ -528,3 +528,11 @@ def test_a_non_finite_inverse_model_or_condition_on_disk_is_refused_before_any_t
     err = capsys.readouterr().err
     assert rel.split("/")[-1] in err and "finite" in err and "Traceback" not in err
     assert snapshot(work) == before
+
+
+def test_a_baseline_made_from_a_trained_model_lists_what_it_adopted(lab, tmp_path):
+    from multiform.tasks.baselines import same_laws_model
+    other = same_laws_model(SkillModel(lab / "model"), tmp_path / "as_written", "pendulum_strict")
+    assert other.problems() == []
+    kinds = sorted(i["kind"] for i in other.manifest["artifacts"].values())
+    assert kinds.count("law") == 2 and kinds.count("judge") == 2 and "regions" in kinds

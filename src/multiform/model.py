@@ -310,6 +310,21 @@ class SkillModel:
     def labels(self) -> LabelStore:
         return LabelStore(self.path / "labels.jsonl")
 
+    def adopt(self, other: SkillModel, kinds: Sequence[str]) -> list[str]:
+        """Copy ``other``'s artifacts of ``kinds`` (law, judge, regions, inverse_model, ...) into this
+        model, listed with their hashes: a baseline made from a trained model. ``other`` is checked
+        first; returns the copied files."""
+        other.verify(to_run=False)
+        copied = []
+        for rel, info in other.manifest["artifacts"].items():
+            if info["kind"] in kinds:
+                dst = self.path / rel
+                dst.parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(other.path / rel, dst)
+                self._register(dst, info["kind"])
+                copied.append(rel)
+        return copied
+
     def save_inverse_model(self, inverse: Any) -> None:
         self._save(inverse, "inverse_model.npz", "inverse_model")
 

@@ -17,13 +17,9 @@ def same_laws_model(model: SkillModel, folder: Path, skill: str) -> SkillModel:
     """Another definition (``skill``) with this model's laws, judges, regions and inverse model."""
     m = model.manifest
     other = SkillModel.create(folder, skill, m["demos"], m["env"], m.get("env_kwargs", {}))
-    for sub in ("laws", "judges"):
-        (other.path / sub).mkdir(exist_ok=True)
-        for f in (model.path / sub).glob("*.npz"):
-            shutil.copyfile(f, other.path / sub / f.name)
-    for name in ("regions.npz", "inverse_model.npz", "labels.jsonl"):
-        if (model.path / name).exists():
-            shutil.copyfile(model.path / name, other.path / name)
+    other.adopt(model, ("law", "judge", "regions", "inverse_model"))
+    if (model.path / "labels.jsonl").exists():
+        shutil.copyfile(model.path / "labels.jsonl", other.path / "labels.jsonl")
     return other
 
 
@@ -80,6 +76,5 @@ def demo_only_model(model: SkillModel, folder: Path, hold_condition: str, hold_t
         law = GPLaw(random_state=seed, input_names=tuple(inputs), output_names=tuple(net.commands),
                     n_restarts=1, sparse_threshold=3000).fit(X, Y)
         base.save_law("all", law)
-    if (model.path / "inverse_model.npz").exists():
-        shutil.copyfile(model.path / "inverse_model.npz", base.path / "inverse_model.npz")
+    base.adopt(model, ("inverse_model",))
     return base
