@@ -51,27 +51,22 @@ def _count(low: int, high: int):
     return parse
 
 
-def _positive(text: str) -> float:
-    """An argparse type: a finite number above 0."""
-    import math
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number above 0, got {text}")
-    return v
+def _number(low: float, high: float, low_open: bool = False):
+    """An argparse type: a finite number in ``low..high`` (above ``low`` with ``low_open``)."""
+    def parse(text: str) -> float:
+        import math
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        if not (math.isfinite(v) and (v > low if low_open else v >= low) and v <= high):
+            raise argparse.ArgumentTypeError(f"must be in {'(' if low_open else ''}{low:g}..{high:g}, got {text}")
+        return v
+    return parse
 
 
-def _fraction(text: str) -> float:
-    """An argparse type: a number in 0..1."""
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not 0.0 <= v <= 1.0:
-        raise argparse.ArgumentTypeError(f"must be in 0..1, got {text}")
-    return v
+_positive = _number(0.0, float("inf"), low_open=True)
+_fraction = _number(0.0, 1.0)
 
 
 def _add_ray(p: argparse.ArgumentParser) -> None:

@@ -49,14 +49,14 @@ def write_text(path: str | os.PathLike, text: str) -> None:
 
 def write_json(path: str | os.PathLike, obj: Any) -> None:
     """Write ``obj`` as indented JSON, atomically."""
-    write_text(path, json.dumps(obj, indent=2, sort_keys=False, default=_json_default) + "\n")
+    write_text(path, json.dumps(obj, indent=2, sort_keys=False, default=json_default) + "\n")
 
 
 def append_jsonl(path: str | os.PathLike, record: Mapping[str, Any]) -> None:
     """Append one record to a JSON-lines file; the whole new file replaces the old one atomically."""
     path = Path(path)
     old = path.read_text(encoding="utf-8") if path.exists() else ""
-    line = json.dumps(record, sort_keys=False, default=_json_default)
+    line = json.dumps(record, sort_keys=False, default=json_default)
     write_text(path, old + line + "\n")
 
 
@@ -96,7 +96,7 @@ def save_npz(path: str | os.PathLike, arrays: Mapping[str, np.ndarray], meta: Ma
     for k, v in payload.items():
         if v.dtype == object:
             raise TypeError(f"array {k!r} has dtype object; it would need pickle")
-    payload[FORMAT_KEY] = np.array(json.dumps(header, default=_json_default))
+    payload[FORMAT_KEY] = np.array(json.dumps(header, default=json_default))
     with atomic_path(path, suffix=".npz") as tmp:
         with open(tmp, "wb") as fh:
             np.savez(fh, **payload)
@@ -151,7 +151,8 @@ def _shape_str(shape: tuple[int | None, ...]) -> str:
     return "(" + ", ".join("n" if s is None else str(s) for s in shape) + (",)" if len(shape) == 1 else ")")
 
 
-def _json_default(obj: Any) -> Any:
+def json_default(obj: Any) -> Any:
+    """``json.dumps``' ``default`` for numpy scalars and arrays and paths."""
     if isinstance(obj, np.generic):
         return obj.item()
     if isinstance(obj, np.ndarray):

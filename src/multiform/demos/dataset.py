@@ -40,7 +40,7 @@ import h5py
 import numpy as np
 
 from ..errors import InvalidInput, Problem
-from ..io import atomic_path
+from ..io import atomic_path, json_default
 from .episode import Episode, SegmentLabel
 
 FORMAT_VERSION = 2
@@ -93,7 +93,7 @@ def write_dataset(path: str | os.PathLike, episodes: Sequence[Episode], skill: s
                 n = ep.num_samples
                 g.attrs["num_samples"] = n
                 g.attrs["seed"] = int(ep.seed)
-                g.attrs["reset_options"] = json.dumps(ep.reset_options, default=_jsonable)
+                g.attrs["reset_options"] = json.dumps(ep.reset_options, default=json_default)
                 g.attrs["outcome"] = ep.outcome
                 g.attrs["mentor"] = mentor
                 _write_obs(g, ep, np.dtype(obs_dtype))
@@ -162,13 +162,6 @@ def labels_array(labels: Iterable[SegmentLabel]) -> np.ndarray:
         arr[i] = (lab.start, lab.end, lab.transition.encode(), int(lab.success), lab.labeller.encode())
     return arr
 
-
-def _jsonable(obj: Any) -> Any:
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    raise TypeError(f"{type(obj).__name__} is not JSON serialisable")
 
 
 class Dataset:

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidInput
+from ..io import json_default
 from .episode import Episode, SegmentLabel
 
 CODEBASE_VERSION = "v3.0"
@@ -145,7 +146,7 @@ def write_lerobot(out: str | os.PathLike, episodes: Sequence[Episode], skill: st
                 "dataset_from_index": index, "dataset_to_index": index + n,
                 "meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0,
                 "multiform/outcome": ep.outcome, "multiform/seed": int(ep.seed),
-                "multiform/reset_options": json.dumps(ep.reset_options, default=_jsonable),
+                "multiform/reset_options": json.dumps(ep.reset_options, default=json_default),
                 "multiform/labels": json.dumps([[lab.start, lab.end, lab.transition, bool(lab.success),
                                                  lab.labeller] for lab in ep.labels]),
             })
@@ -191,13 +192,6 @@ def _write_data(root: Path, rows: list[dict[str, np.ndarray]], features: dict[st
     path.parent.mkdir(parents=True, exist_ok=True)
     pq.write_table(pa.table(cols), path, compression="snappy")
 
-
-def _jsonable(obj: Any) -> Any:
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    raise TypeError(f"{type(obj).__name__} is not JSON serialisable")
 
 
 def read_lerobot(root: str | os.PathLike, state_names: Sequence[str] | None = None,
