@@ -60,7 +60,10 @@ def _number(low: float, high: float, low_open: bool = False):
         except ValueError:
             raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
         if not (math.isfinite(v) and (v > low if low_open else v >= low) and v <= high):
-            raise argparse.ArgumentTypeError(f"must be in {'(' if low_open else ''}{low:g}..{high:g}, got {text}")
+            want = f"above {low:g}" if low_open else f"in {low:g}..{high:g}"
+            if low_open and high != float("inf"):
+                want += f" and at most {high:g}"
+            raise argparse.ArgumentTypeError(f"must be a finite number {want}, got {text}")
         return v
     return parse
 
