@@ -114,7 +114,8 @@ def plot(rows: list[dict], path: Path) -> None:
         med = [statistics.median(r["rate"] for r in rows if r["variant"] == variant and r["demos"] == n) for n in counts]
         ax.plot(counts, [100 * v for v in med], marker=marker, label=f"{variant} (median over seeds)")
         pts = [(r["demos"], 100 * r["rate"]) for r in rows if r["variant"] == variant]
-        ax.scatter(*zip(*pts), marker=marker, alpha=0.35, s=18)
+        if pts:
+            ax.scatter(*zip(*pts), marker=marker, alpha=0.35, s=18)
     ax.set_xscale("log", base=2)
     ax.set_xlabel("demonstrations")
     ax.set_ylabel("success over the evaluation trials [%]")

@@ -233,3 +233,64 @@ def test_the_target_counts_only_trials_of_the_net_as_it_is_now(tmp_path):
     assert not practice._reached_target(PracticeState(trial=9, trials=later))
     assert practice._reached_target(PracticeState(trial=10, trials=later + [{"trial": 9, "success": True,
                                                                               "net_version": 1}]))
+
+
+def _exam_state(before: list[bool], after: list[bool], draws: list[int]) -> PracticeState:
+    trials = [{"trial": i, "success": ok} for i, ok in enumerate(before)]
+    trials += [{"trial": len(before) + i, "success": ok, "draw": d} for i, (ok, d) in enumerate(zip(after, draws))]
+    return PracticeState(trial=len(trials), trials=trials,
+                         watch={"before_version": 0, "version": 1, "after_trial": len(before) - 1,
+                                "before": before, "draws": draws})
+
+
+@pytest.mark.parametrize("after, reverted", [
+    ([True] * 7 + [False] * 3, True),                        # lost 2 of the same trials, won none
+    ([False] + [True] * 8 + [True], False),                  # lost 1, won 1: a tie keeps the revision
+])
+def test_an_examined_revision_is_judged_on_the_same_trials_replayed(tmp_path, after, reverted):
+    model = _model(tmp_path)
+    _, rev = refit_law(model.apn, "swing_up", "swing_up_r1", "own data")
+    model.history.record(rev)
+    practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, revert_window=10, exam=True), name="c")
+    before = [True] * 9 + [False]
+    state = _exam_state(before, after, draws=list(range(10)))
+    practice._check_watch(state)
+    assert state.watch is None and state.last_refit_trial == state.trial - 1
+    if reverted:
+        assert model.version == 2 and model.apn.laws["swing_up"].fit_name == "swing_up"
+        ev = model.history.revisions()[-1].evidence
+        assert (ev["lost"], ev["won"], ev["reverted"]) == (2, 0, 1)
+    else:
+        assert model.version == 1
+
+
+def test_the_exam_replays_the_draws_of_the_plain_trials_before_the_revision(tmp_path):
+    model = _model(tmp_path)
+    cfg = PracticeConfig(learn=True, revert_window=3, exam=True, explore=0.5, explore_every=2)
+    practice = Practice(model, tmp_path / "p", cfg, name="c")
+    # trials 0..5, the odd ones explored; the last three plain ones are 0, 2, 4 (trial 4 itself a replay of 1)
+    trials = [{"trial": i, "success": True, "explored": i % 2 == 1} for i in range(6)]
+    trials[4]["draw"] = 1
+    state = PracticeState(trial=6, trials=trials)
+    practice._watch(state, 0, 1)
+    assert state.watch["draws"] == [0, 2, 1]
+    assert [practice._exam_draw(PracticeState(trial=6 + i, trials=trials, watch=state.watch)) for i in range(4)] \
+        == [0, 2, 1, None]
+    # without an exam nothing is replayed
+    plain = Practice(model, tmp_path / "q", PracticeConfig(learn=True), name="c")
+    fresh = PracticeState(trial=6, trials=trials)
+    plain._watch(fresh, 0, 1)
+    assert "draws" not in fresh.watch and plain._exam_draw(fresh) is None
+
+
+def test_own_samples_join_only_where_the_mentors_law_is_unsure():
+    from multiform.learn.training import novel_samples
+    from multiform.learn.views import LawData
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-1, 1, (300, 2))
+    law = GPLaw(n_hyper=300, n_restarts=0, random_state=0).fit(X, np.sin(3 * X[:, 0]))
+    near = rng.uniform(-0.9, 0.9, (50, 2))               # inside the mentor's data
+    far = rng.uniform(3.0, 4.0, (50, 2))                 # where the mentor never went
+    own = LawData(np.vstack([near, far]), np.zeros((100, 1)), np.arange(100))
+    kept = novel_samples(own, law, 0.5)
+    assert set(kept.episode.tolist()) == set(range(50, 100))

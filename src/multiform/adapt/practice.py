@@ -18,7 +18,11 @@ With ``learn`` (learning from practice, the paper's third form in full) the loop
   own grade is counted;
 * watches every revision: if the robot's own success rate over the next ``revert_window`` plain
   trials is clearly worse than over the ``revert_window`` before it (one-sided Fisher test at
-  ``revert_p``), the net goes back to the version before (a ``revert`` revision);
+  ``revert_p``), the net goes back to the version before (a ``revert`` revision). With ``exam``
+  the comparison is paired: the ``revert_window`` trials after a revision replay the draws (seed,
+  start, push) of the plain trials before it, without exploring, and the revision is reverted if
+  it lost more of those same trials than it won. Paired, ten trials see a drop that two
+  independent windows of ten cannot (a fall from 8/10 to 6/10 is p ≈ 0.3 unpaired);
 * stops when its own success rate over the last ``target_window`` plain trials reaches
   ``target_rate``.
 
@@ -45,7 +49,7 @@ from ..errors import InvalidInput
 from ..io import read_json, write_json
 from ..lock import exclusive
 from ..learn.labels import is_mentor, records_from_episode
-from ..learn.training import fit_law
+from ..learn.training import LawSettings, fit_law
 from ..learn.views import place_episode
 from ..model import ModelLearners, SkillModel
 from ..petri.net import APN
@@ -91,6 +95,8 @@ class PracticeConfig:
     target_window: int = 20
     revert_window: int = 10
     revert_p: float = 0.1
+    exam: bool = False
+    novelty: float = 0.0
 
     def __post_init__(self) -> None:
         counts = {"failures_in_a_row": 1, "window": 0, "success_streak": 1, "max_trials": 1, "seed": 0,
@@ -100,7 +106,7 @@ class PracticeConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= 1_000_000:
                 raise InvalidInput(f"must be a whole number in {low}..1000000, got {v!r}", element=name)
-        for name in ("failure_rate", "margin", "target_rate", "revert_p", "explore", "explore_tau"):
+        for name in ("failure_rate", "margin", "target_rate", "revert_p", "explore", "explore_tau", "novelty"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and 0.0 <= v <= (10.0 if name.startswith("explore")
                                                                                        else 1.0)):
@@ -240,15 +246,17 @@ class Practice:
                 judges = self.model.judges() if cfg.use_judges else {}
             k = state.trial
             t0 = time.perf_counter()
-            explores = explorer is not None and cfg.explores(k)
+            draw = self._exam_draw(state)
+            explores = explorer is not None and cfg.explores(k) and draw is None
+            draw = k if draw is None else draw
             runner = executor
             if explores:
                 for i, law in enumerate(sorted(explorer.laws)):
                     explorer.laws[law].reseed(cfg.trial_seed(k) * 31 + i)
                 runner = explorer
             view = self.observe(k, executor) if self.observe else None
-            trace = runner.run(seed=cfg.trial_seed(k), options=self.options(k),
-                               perturb=self.perturb(k) if self.perturb else None, observer=view)
+            trace = runner.run(seed=cfg.trial_seed(draw), options=self.options(draw),
+                               perturb=self.perturb(draw) if self.perturb else None, observer=view)
             if trace.outcome == "fault":
                 # a non-finite value is the model's or the simulator's fault, not the skill's: nothing
                 # is learned or repaired from it, and practice stops until someone looks
@@ -261,7 +269,7 @@ class Practice:
                 if grade is not None:
                     view.grade(grade, success)
                 view.close()
-            summary = {"trial": k, "seed": cfg.trial_seed(k), "net_version": version, "outcome": trace.outcome,
+            summary = {"trial": k, "seed": cfg.trial_seed(draw), "net_version": version, "outcome": trace.outcome,
                        "success": bool(success), "judge_score": None if grade is None else round(grade.score, 4),
                        "judge_places": None if grade is None else {p: round(v, 4) for p, v in grade.places.items()},
                        "duration": round(trace.duration, 3), "fired": trace.fired(),
@@ -272,6 +280,8 @@ class Practice:
                 summary["evidence"] = False
             if cfg.explore > 0:
                 summary["explored"] = explores
+            if draw != k:
+                summary["draw"] = draw
             if cfg.learn and grade is not None:
                 summary.update(self._learn_from(state, k, trace, grade, executor.apn))
                 if "revised" in summary.get("mentor", {}):
@@ -293,7 +303,8 @@ class Practice:
                                      f"{cfg.target_window} plain trials")
             elif self._constant_failure(state):
                 self._repair(state)
-            if not state.done and cfg.learn and state.trial - state.last_refit_trial - 1 >= cfg.refit_every \
+            if not state.done and cfg.learn and (state.watch is None or not cfg.exam) \
+                    and state.trial - state.last_refit_trial - 1 >= cfg.refit_every \
                     and cfg.max_trials - state.trial >= self._watch_trials():
                 self._refit(state)
             self.save_state(state)
@@ -380,12 +391,15 @@ class Practice:
                 continue
             own = self.experience.law_episodes(law, mine)
             current = self.model.laws(apn).get(law)
-            refitted, info = fit_law(self.model.history.version(0), self.model.episodes, law, seed=cfg.seed,
-                                     own=own, own_apn=apn, current=current)
+            mentor_net = self.model.history.version(0)
+            refitted, info = fit_law(mentor_net, self.model.episodes, law, seed=cfg.seed, own=own, own_apn=apn,
+                                     current=current, mentor_law=self.model.laws(mentor_net).get(law),
+                                     settings=LawSettings(own_novelty=cfg.novelty))
             fit = self.learners.fresh_law(law)
             self.model.save_law(fit, refitted)
             evidence = {"own_segments": len(mine), "new_own_segments": len(new), "own_trials": len(own),
-                        "own_samples": info.get("n_own"), "mentor_samples": info.get("n_mentor"),
+                        "own_samples": info.get("n_own"), "own_samples_offered": info.get("n_own_offered"),
+                        "mentor_samples": info.get("n_mentor"),
                         "heldout_nrmse_before": _round(info.get("heldout_nrmse_current")),
                         "heldout_nrmse_after": _round(info.get("heldout_nrmse")),
                         "sources": sorted({s.source for s in mine}), "after_trial": state.trial - 1}
@@ -417,6 +431,8 @@ class Practice:
     def _watch_trials(self) -> int:
         """Trials it takes to see ``revert_window`` plain ones."""
         cfg = self.config
+        if cfg.exam:
+            return cfg.revert_window
         return cfg.revert_window * (cfg.explore_every if cfg.explore > 0 and cfg.explore_every > 1 else 1)
 
     def _plain(self, state: PracticeState) -> list[dict[str, Any]]:
@@ -439,15 +455,33 @@ class Practice:
         trials before them."""
         if not self.config.learn:
             return
-        before = [bool(t["success"]) for t in self._plain(state)[-self.config.revert_window:]]
+        last = self._plain(state)[-self.config.revert_window:]
         state.watch = {"before_version": before_version, "version": version, "after_trial": state.trial - 1,
-                       "before": before}
+                       "before": [bool(t["success"]) for t in last]}
+        if self.config.exam:
+            state.watch["draws"] = [int(t.get("draw", t["trial"])) for t in last]
+
+    def _exam_draw(self, state: PracticeState) -> int | None:
+        """The draw the next trial replays while a revision is examined (None: a fresh trial)."""
+        w = state.watch
+        if w is None or "draws" not in w:
+            return None
+        i = state.trial - w["after_trial"] - 1
+        return w["draws"][i] if 0 <= i < len(w["draws"]) else None
 
     def _check_watch(self, state: PracticeState) -> None:
         w, cfg = state.watch, self.config
         if w is None:
             return
         after = [bool(t["success"]) for t in self._plain(state) if t["trial"] > w["after_trial"]]
+        if "draws" in w:
+            if len(after) < len(w["draws"]):
+                return
+            state.watch = None
+            state.last_refit_trial = max(state.last_refit_trial, state.trial - 1)
+            if self.model.version == w["version"] and w["draws"]:
+                self._paired_verdict(state, w, after[:len(w["draws"])])
+            return
         if len(after) < cfg.revert_window:
             return
         state.watch = None
@@ -464,6 +498,22 @@ class Practice:
                         f"own success rate fell from {sum(before)}/{len(before)} to {sum(after)}/{len(after)} plain "
                         f"trials after version {w['version']} (one-sided Fisher p = {p:.3f})",
                         {"before": table[0], "after": table[1], "p": round(p, 4), "reverted": w["version"]})
+        self._record(state, rev)
+
+    def _paired_verdict(self, state: PracticeState, w: dict[str, Any], after: list[bool]) -> None:
+        """Revert the examined revision if it lost more of the replayed trials than it won."""
+        before = w["before"]
+        lost = sum(b and not a for b, a in zip(before, after))
+        won = sum(a and not b for b, a in zip(before, after))
+        if lost <= won:
+            return
+        target = self.model.history.version(w["before_version"])
+        _, rev = revert(self.model.apn, w["before_version"], target,
+                        f"the same {len(after)} trials replayed after version {w['version']}: {sum(before)} -> "
+                        f"{sum(after)} successes ({lost} lost, {won} won)",
+                        {"before": [sum(before), len(before) - sum(before)],
+                         "after": [sum(after), len(after) - sum(after)], "lost": lost, "won": won,
+                         "draws": w["draws"], "reverted": w["version"]})
         self._record(state, rev)
 
     def _constant_failure(self, state: PracticeState) -> bool:

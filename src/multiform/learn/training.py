@@ -61,6 +61,9 @@ class LawSettings:
     own_ratio: float = 1.0           # the robot's own samples at most this many times the mentor's (a random
                                      # subset): on-policy swing-ups from hanging, 5x the mentor's data, drowned
                                      # its recoveries from pushes (10 demos, seed 0: pushed practice trials failed)
+    own_novelty: float = 0.0         # an own sample joins only where the mentor-only law's posterior std is at
+                                     # least this fraction of its prior std (0: every own sample may join);
+                                     # see :func:`novel_samples`
     mirror: bool = True              # also learn from each episode's mirror image (skills that declare one):
                                      # with 10 demos, a swing-up learned from one image drifted to one end
                                      # of the stroke and stalled there (seed 2: 4/40 trials; both: 20/40)
@@ -68,8 +71,8 @@ class LawSettings:
 
 def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool = True,
             heldout: float = 0.2, seed: int = 0, settings: LawSettings | None = None,
-            own: Sequence[Episode] = (), own_apn: APN | None = None, current: GPLaw | None = None
-            ) -> tuple[GPLaw, dict[str, Any]]:
+            own: Sequence[Episode] = (), own_apn: APN | None = None, current: GPLaw | None = None,
+            mentor_law: GPLaw | None = None) -> tuple[GPLaw, dict[str, Any]]:
     """Fit one law; returns the law (refit on all its data) and a summary with held-out NRMSE.
 
     ``own`` are the robot's own practice episodes whose labels mark the segments it graded
@@ -77,7 +80,9 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
     default ``apn``): their samples join the mentor's, paired at the same tick (the robot's command
     answers the state it read, with no reaction time). Held-out error is measured on whole held-out
     episodes of both kinds; with ``current``, that law's error on the same held-out samples is
-    reported beside it (``heldout_nrmse_current``), so a refit shows before and after.
+    reported beside it (``heldout_nrmse_current``), so a refit shows before and after. With
+    ``mentor_law`` (the law fitted on the mentor's data alone) and ``settings.own_novelty`` > 0, only
+    the own samples where that law is unsure join (:func:`novel_samples`).
     """
     s = settings or LawSettings()
     mirror = s.mirror and bool(apn.mirror)
@@ -95,6 +100,9 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
     if own:
         net = own_apn or apn
         mine = both(law_data(net, own, law, success_only=True, lag=0.0), net, own, 0.0, True)
+        n_offered = len(mine.X)
+        if mentor_law is not None and s.own_novelty > 0:
+            mine = novel_samples(mine, mentor_law, s.own_novelty)
         cap = int(s.own_ratio * n_mentor)
         if len(mine.X) > cap:
             keep = np.sort(np.random.default_rng([seed, 1]).choice(len(mine.X), cap, replace=False))
@@ -122,7 +130,8 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
     summary: dict[str, Any] = {"n": int(len(data.X)), "demos": int(np.sum(demos < len(episodes))),
                                "success_only": success_only}
     if own:
-        summary.update(n_mentor=int(n_mentor), n_own=int(len(data.X) - n_mentor), own_ratio=s.own_ratio,
+        summary.update(n_mentor=int(n_mentor), n_own=int(len(data.X) - n_mentor), n_own_offered=int(n_offered),
+                       own_ratio=s.own_ratio, own_novelty=s.own_novelty,
                        own_episodes=int(np.sum(demos >= len(episodes))))
     if len(demos) >= 2 and heldout > 0:
         tr_d, te_d = split_episodes(len(demos), heldout, seed)
@@ -141,6 +150,24 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
                    length_scales={k: round(v, 4) for k, v in info["length_scale"].items()},
                    signal_std=round(float(info["sigma_f"]), 4), noise_std=round(float(info["noise"]), 4))
     return law_model, summary
+
+
+def novel_samples(data: LawData, current: GPLaw, min_ratio: float) -> LawData:
+    """The samples of ``data`` where ``current`` is still unsure: its posterior standard deviation is
+    at least ``min_ratio`` of its prior one (in any output).
+
+    Why: where the mentor's samples already pin the law down, an own sample adds nothing the mentor
+    did not show; it only pulls hyperparameters and inducing points toward the robot's on-policy
+    states (with 10 demos, many own swing-ups from hanging made recoveries after a push worse). Where
+    the law is unsure, the robot's own graded success is the only teacher there is.
+    """
+    if not len(data.X):
+        return data
+    _, sd = current.predict(data.X, return_std=True)
+    prior = current.sigma_f_ * np.asarray(current.y_scale_, dtype=np.float64)
+    ratio = (np.asarray(sd).reshape(len(data.X), -1) / prior).max(axis=1)
+    keep = np.flatnonzero(ratio >= min_ratio)
+    return LawData(data.X[keep], data.Y[keep], data.episode[keep])
 
 
 def mentor_records(apn: APN, episodes: Sequence[Episode]) -> list[LabelRecord]:
