@@ -35,8 +35,10 @@ def test_round_trip(demo_file):
     path, eps = demo_file
     ds = read_dataset(path)
     assert len(ds) == 3 and ds.skill == "pendulum" and ds.env_kwargs == {"action_mode": "ee"}
+    assert ds.meta["obs_dtype"] == "float32"
     for a, b in zip(eps, ds):
-        assert np.array_equal(a.obs, b.obs) and np.array_equal(a.actions, b.actions)
+        # observations are stored as float32 (to the bit), commands exactly
+        assert np.array_equal(a.obs.astype(np.float32), b.obs) and np.array_equal(a.actions, b.actions)
         assert list(a.transitions) == list(b.transitions)
         assert a.labels == b.labels and a.outcome == b.outcome and a.reset_options == b.reset_options
     s = ds.summary()
@@ -51,8 +53,9 @@ def test_robomimic_layout(demo_file):
         assert f["data/demo_0"].attrs["num_samples"] == 300
         assert f["data/demo_0/obs/theta"].shape == (300, 1)
         assert f["data/demo_0/obs/theta"].compression == "gzip"
-        assert np.array_equal(f["data/demo_0/next_obs/theta"][:-1, 0], eps[0].column("theta")[1:])
-        assert f["data/demo_0/next_obs/theta"][-1, 0] == eps[0].column("theta")[-1]
+        theta = eps[0].column("theta").astype(np.float32)
+        assert np.array_equal(f["data/demo_0/next_obs/theta"][:-1, 0], theta[1:])
+        assert f["data/demo_0/next_obs/theta"][-1, 0] == theta[-1]
         actions = f["data/demo_0/actions"][()]
         assert actions.shape == (300, 1) and np.abs(actions).max() <= 1.0
         assert f["data/demo_0/dones"][-1] == 1
@@ -144,7 +147,7 @@ def test_version_1_files_still_read(tmp_path):
     eps = [_episode(0), _episode(1, outcome="failure")]
     _write_version_1(tmp_path / "old.h5", eps)
     ds = read_dataset(tmp_path / "old.h5")
-    assert ds.meta["format_version"] == 1
+    assert ds.meta["format_version"] == 1 and ds.meta["obs_dtype"] == "float64"
     for a, b in zip(eps, ds):
         assert np.array_equal(a.obs, b.obs) and np.array_equal(a.actions, b.actions)
         assert list(a.transitions) == list(b.transitions) and a.labels == b.labels
@@ -159,7 +162,7 @@ def test_compact_storage_is_exact_and_small(tmp_path):
     ep.obs[:, 3] = ep.obs[:, 2]
     path = write_dataset(tmp_path / "d.h5", [ep], "pendulum", "x")
     back = read_dataset(path).episodes[0]
-    assert np.array_equal(back.actions, ep.actions) and np.array_equal(back.obs, ep.obs)
+    assert np.array_equal(back.actions, ep.actions) and np.array_equal(back.obs, ep.obs.astype(np.float32))
     with h5py.File(path) as f:
         scale, peak = f["data"].attrs["action_scale"][0], np.abs(ep.actions).max()
         assert np.log2(scale) % 1 == 0 and peak <= scale < 2 * peak
@@ -180,12 +183,14 @@ def test_bad_version_2_tables_refused(demo_file, mutate, fragment):
         read_dataset(path)
 
 
-def test_float32_observations_on_request(tmp_path):
-    ep = _episode(0, n=2000)
-    path = write_dataset(tmp_path / "d.h5", [ep], "pendulum", "x", obs_dtype="float32")
-    back = read_dataset(path).episodes[0]
-    assert back.obs.dtype == np.float64
-    np.testing.assert_array_equal(back.obs, ep.obs.astype(np.float32))
-    assert np.array_equal(back.actions, ep.actions)                  # commands stay exact
+def test_float64_observations_on_request_half_as_compact(tmp_path):
+    ep = _episode(0, n=20000)
+    exact = write_dataset(tmp_path / "d64.h5", [ep], "pendulum", "x", obs_dtype="float64")
+    back = read_dataset(exact)
+    assert back.meta["obs_dtype"] == "float64" and back.episodes[0].obs.dtype == np.float64
+    np.testing.assert_array_equal(back.episodes[0].obs, ep.obs)
+    assert np.array_equal(back.episodes[0].actions, ep.actions)
+    small = write_dataset(tmp_path / "d32.h5", [ep], "pendulum", "x")
+    assert small.stat().st_size < 0.65 * exact.stat().st_size         # the commands stay float64
     with pytest.raises(InvalidInput, match="obs_dtype must be float64 or float32"):
         write_dataset(tmp_path / "e.h5", [ep], "pendulum", "x", obs_dtype="float16")
