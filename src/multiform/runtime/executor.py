@@ -1,6 +1,6 @@
 """The executor: runs a skill (net + laws + inverse model) on a Gymnasium env at the control rate.
 
-One tick (see the README's "Tick semantics"): read the state → the net observes it and fires at
+One tick (see "Tick semantics" in docs/skill-files.md): read the state → the net observes it and fires at
 most one transition → the active law(s) compute the end-effector command → the safety limits clip
 it → the inverse model (if any) turns it into joint torques, clipped to the actuator limits → the
 env steps. The executor reads only the env's observations (the robot's own sensors); it never
