@@ -198,6 +198,10 @@ class PlaceRegions(BaseEstimator):
         self._tau_shifted = self._tau - self._amax
         self._index = {p: i for i, p in enumerate(self.places_)}
 
+    def place_index(self, place: str) -> int:
+        """The column of ``place`` in :meth:`logits` and :meth:`logits_one` (``places_`` order)."""
+        return self._index[place]
+
     def logits_one(self, x: np.ndarray) -> np.ndarray:
         """z per place (``places_`` order) for one raw state; the control-rate path.
 
@@ -230,7 +234,7 @@ class PlaceRegions(BaseEstimator):
 
     def score_one(self, x: np.ndarray, place: str) -> float:
         """One place's score for one state."""
-        return float(_sigmoid(self.logits_one(np.asarray(x, dtype=np.float64))[self._index[place]]))
+        return float(_sigmoid(self.logits_one(np.asarray(x, dtype=np.float64))[self.place_index(place)]))
 
     def best(self, X: np.ndarray) -> list[str | None]:
         """Per row, the best-matching place, or None when no place's score reaches 0.5."""
@@ -240,7 +244,7 @@ class PlaceRegions(BaseEstimator):
 
     def belongs(self, X: np.ndarray, place: str) -> np.ndarray:
         """Per row: ``place`` scores at least 0.5."""
-        return self.logits(X)[:, self._index[place]] >= 0.0
+        return self.logits(X)[:, self.place_index(place)] >= 0.0
 
     def coverage_on(self, samples: Mapping[str, np.ndarray]) -> dict[str, float]:
         """Fraction of each place's given states that score ≥ 0.5 for that place."""
@@ -358,8 +362,8 @@ class RegionCondition:
         self.regions, self.mode, self.into, self.rather_than = regions, mode, into, rather_than
         self.leave_below = float(leave_below)
         self.input_names = tuple(regions.input_names)
-        self._i = regions._index[into] if into else -1
-        self._j = regions._index[rather_than] if rather_than else -1
+        self._i = regions.place_index(into) if into else -1
+        self._j = regions.place_index(rather_than) if rather_than else -1
         # "outside": every place below 0, the place being left below its own (lower) bound
         self._outside_bound = np.zeros(len(regions.places_))
         if self._j >= 0:
