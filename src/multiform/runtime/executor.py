@@ -132,6 +132,8 @@ class Executor:
             observer.end(trace)
         return trace
 
+    # One function on purpose: its loop is the 1 kHz tick, where locals beat attribute look-ups and
+    # every extra call per tick shows in the closed loop's speed (benchmarks/bench_closed_loop.py).
     def _run(self, seed: int, options: Mapping[str, Any] | None, max_duration: float | None,
              qpos_every: int, perturb: Perturbation | None, observer: Observer | None = None) -> Trace:
         env, runner, sat = self.env, self.runner, self.saturator
