@@ -1,14 +1,18 @@
 # Two commands for a newcomer: `make demo` (the pendulum skill, end to end) and `make test`.
-# Both set everything up first: system packages, the virtualenv .venv, the Python packages.
+# Both set everything up first: system packages, the virtualenv .venv, the Python packages at the
+# versions of requirements.lock (`make lock` rewrites it from the installed environment).
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+RUN_STAMP := $(VENV)/.installed-run
+LOCK   := requirements.lock
 export MUJOCO_GL ?= egl
 
-.PHONY: demo test test-slow test-lerobot bench setup clean
+.PHONY: demo test test-slow test-lerobot bench setup lock clean
 
-demo: $(STAMP)
+# The demo needs the runtime dependencies only; the tests also their extras.
+demo: $(RUN_STAMP)
 	$(BIN)/multiform demo pendulum --out runs/pendulum
 
 test: $(STAMP)
@@ -33,13 +37,22 @@ bench: $(STAMP)
 
 setup: $(STAMP)
 
-$(STAMP): pyproject.toml scripts/system-deps.sh
+$(RUN_STAMP): pyproject.toml $(LOCK) scripts/system-deps.sh
 	bash scripts/system-deps.sh
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q -e '.[test,lerobot,interop,view,ray]'
+	$(BIN)/python -m pip install -q -e . -c $(LOCK)
+	touch $@
+
+$(STAMP): $(RUN_STAMP)
+	$(BIN)/python -m pip install -q -e '.[test,lerobot,interop,view,ray]' -c $(LOCK)
 	$(BIN)/python -m pip install -q --no-deps robomimic==0.3.0
-	touch $(STAMP)
+	touch $@
+
+# After changing a dependency in pyproject.toml: install it (`make setup`, or pip install without
+# the lock), then write the versions now installed into the lock.
+lock:
+	$(BIN)/python scripts/lock.py > $(LOCK).new && mv $(LOCK).new $(LOCK)
 
 clean:
 	rm -rf $(VENV) $(LEROBOT_VENV) runs .pytest_cache .hypothesis

@@ -90,7 +90,7 @@ def main() -> None:
     t0 = time.perf_counter()
     exact = GPLaw(input_names=["theta", "omega", "x", "xdot", "phase"], output_names=["ax", "az"]).fit(X, Y)
     fit_s = time.perf_counter() - t0
-    exact.heldout_error(Xt, Yt_true)
+    exact.record_heldout_error(Xt, Yt_true)
     s = exact.summary()
     print(f"  fit: {fit_s:.2f} s (target ≤ 10 s: {'met' if fit_s <= 10 else 'NOT met'})")
     print(f"  mode {s['mode']}, variance {s['var_mode']} ({s['n_inducing']} inducing points); "
@@ -107,7 +107,7 @@ def main() -> None:
               f"measured; here {ref:.1f} µs ({ref / 14:.1f}×). numpy's float64 exp is "
               f"{'SIMD (AVX-512)' if avx512() else 'scalar here (no AVX-512 on this CPU), ≈ 5 ns a point'}, "
               "and the exp of every training point dominates the exact mean")
-        ref = clone(exact).set_params(fast_exp=False).fit(X, Y, theta=theta)
+        ref = clone(exact).set_params(fast_exp=False, theta=theta).fit(X, Y)
         Xq = np.vstack([Xt, Xt + Xt.std(0) * rng.uniform(0.5, 5, (len(Xt), 1)) * rng.normal(size=Xt.shape)])
         dev = max(np.max(np.abs(exact.predict_one(x) - ref.predict_one(x)) / exact.y_scale_) for x in Xq)
         print(f"  float32 kernel exponentials: {'on' if exact._fast else 'off'} (probe-measured deviation "
@@ -121,7 +121,7 @@ def main() -> None:
         timed(f"exact n=2000 mean + variance through its FITC companion (default, n > "
               f"exact_var_max_n={exact.exact_var_max_n})", exact.predict_one_var, states, args.calls, args.repeats)
         for n in (250, 500, 1000, 2000):
-            full = GPLaw(sparse_threshold=None, exact_var_max_n=None).fit(X[:n], Y[:n], theta=theta)
+            full = GPLaw(sparse_threshold=None, exact_var_max_n=None, theta=theta).fit(X[:n], Y[:n])
             timed(f"exact n={n} mean + exact variance (O(n²) triangular solve)", full.predict_one_var,
                   states, min(args.calls, 10_000), args.repeats)
         print(f"  → GPLaw computes the variance exactly on the hot path up to n = {exact.exact_var_max_n} "
@@ -134,7 +134,7 @@ def main() -> None:
     t0 = time.perf_counter()
     sparse = GPLaw(n_inducing=300).fit(Xb, Yb)
     fit_s = time.perf_counter() - t0
-    sparse.heldout_error(Xt, Yt_true)
+    sparse.record_heldout_error(Xt, Yt_true)
     ss = sparse.summary()
     print(f"  fit (hyperparameters on 1,000 points + k-means + FITC on 50,000): {fit_s:.2f} s; mode "
           f"{ss['mode']}, held-out nRMSE " + ", ".join(f"{v:.4f}" for v in ss["heldout_nrmse"]))

@@ -7,7 +7,7 @@ Prints, per seed: the revisions each scenario made, the final
 success rate with its Wilson 95 % interval (unpushed / pushed), and how the failures ended; then the
 median and range over seeds. No ablations, videos or report (``multiform demo`` does those).
 
-    .venv/bin/python benchmarks/bench_job_seeds.py --out /tmp/seeds --seeds 0 1 2 [--trials 200]
+    .venv/bin/python benchmarks/bench_job_seeds.py --out runs/seeds --seeds 0 1 2 [--trials 200]
 
 About 6 minutes per seed on this 2-core machine with 200 trials. Each seed's run folder
 (``OUT/seed_N``) is kept; a folder that already holds a finished seed is reused.

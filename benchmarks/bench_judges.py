@@ -20,8 +20,8 @@ accuracy with its Wilson 95 % interval, the confusion counts (mentor success = p
 ``--errors``, the misclassified segments (end state, duration, score, the mentor's sub-labels).
 Issue 5 asks ≥ 95 %.
 
-    .venv/bin/python benchmarks/bench_judges.py --dataset /tmp/job6/demos.h5 --record 300 \\
-        --test-dataset /tmp/h5judge/heldout.h5
+    .venv/bin/python benchmarks/bench_judges.py --dataset runs/pendulum/demos.h5 --record 300 \\
+        --test-dataset runs/heldout.h5
 """
 
 from __future__ import annotations

@@ -529,6 +529,17 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show the traceback of an internal error")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True, parser_class=_Parser)
 
+    _add_net_commands(sub)
+    _add_demonstration_commands(sub)
+    _add_teaching_commands(sub)
+    _add_model_commands(sub)
+    _add_run_commands(sub)
+    _add_output_commands(sub)
+    return parser
+
+
+def _add_net_commands(sub: argparse._SubParsersAction) -> None:
+    """Check, draw and net: a skill's net, its versions, PNML."""
     p = sub.add_parser("check", help="validate a skill file and analyse its net (exit 0 ok, 2 problems)")
     p.add_argument("skill", help="skill file or bundled skill name")
     p.add_argument("--max-states", type=_count(1, 10_000_000), default=10_000, help="cap on the reachability graph")
@@ -567,6 +578,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", "-o")
     p.set_defaults(func=cmd_net_import)
 
+
+def _add_demonstration_commands(sub: argparse._SubParsersAction) -> None:
+    """Record and demos: the scripted mentor's demonstrations and demonstration files."""
     p = sub.add_parser("record", help="record scripted-mentor demonstrations of a task (HDF5)")
     p.add_argument("task", help="a bundled task (pendulum, nunchaku), an installed one, package.module:NAME or path/to/file.py:NAME")
     p.add_argument("--demos", type=_count(1, 1000), default=40, help="number of demonstrations")
@@ -602,6 +616,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--env", help="env id to record (default: the dataset's)")
     p.set_defaults(func=cmd_demos_import)
 
+
+def _add_teaching_commands(sub: argparse._SubParsersAction) -> None:
+    """Teleop and label: a person demonstrates, labels and grades."""
     p = sub.add_parser("teleop", help="demonstrate a task yourself (keyboard or joystick), label it, save it (HDF5)",
                        description="Drive the arm with the arrow keys or a joystick axis, mark the sub-procedure "
                                    "you are executing with the number keys or joystick buttons (0-6: t0-t6), end "
@@ -636,6 +653,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=_count(0, MAX_SEED), default=0, help="random state of a newly fitted judge")
     p.set_defaults(func=cmd_label)
 
+
+def _add_model_commands(sub: argparse._SubParsersAction) -> None:
+    """Train and practice: a skill model from demonstrations, then its practice with repair."""
     p = sub.add_parser("train", help="fit laws, judges and regions of a skill from demonstrations")
     p.add_argument("skill", help="skill file or bundled skill name")
     p.add_argument("demos", help="demonstration file (.h5)")
@@ -663,8 +683,11 @@ def build_parser() -> argparse.ArgumentParser:
     _add_view(p, "each trial (saved in the practice folder's view/)")
     p.set_defaults(func=cmd_practice)
 
+
+def _add_run_commands(sub: argparse._SubParsersAction) -> None:
+    """Evaluate and demo: a model's evaluation, and the main job from nothing to a report."""
     p = sub.add_parser("evaluate", help="run a trained model on the task's evaluation trials; success with its "
-                                        "95 % interval, the pushed split, the robot's own verdict")
+                                        "95 %% interval, the pushed split, the robot's own verdict")
     p.add_argument("model", help="model directory")
     p.add_argument("--task", default=None,
                    help="the task (default: the bundled or installed one whose env the model runs); "
@@ -705,6 +728,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_ray(p)
     p.set_defaults(func=cmd_demo)
 
+
+def _add_output_commands(sub: argparse._SubParsersAction) -> None:
+    """Replay and report: what a run leaves to look at."""
     p = sub.add_parser("replay", help="replay a demonstration or a saved trial into the view (.rrd) or to an MP4",
                        description="A demonstration (a .h5 file, --demo picks one) is replayed on its env from its "
                                    "seed and commands and checked to reproduce the recorded states; a trial trace "
@@ -726,7 +752,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--view", action="store_true",
                    help="also save the picked trials as rerun recordings (RUN/view/*.rrd); implies --redraw")
     p.set_defaults(func=cmd_report)
-    return parser
 
 
 def _version() -> str:

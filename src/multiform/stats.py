@@ -2,19 +2,15 @@
 
 from __future__ import annotations
 
-import math
+from scipy.stats import binomtest
 
 
-def wilson(successes: int, trials: int, z: float = 1.959964) -> tuple[float, float]:
-    """Wilson score interval (95 % by default) for ``successes`` out of ``trials``."""
+def wilson(successes: int, trials: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval for ``successes`` out of ``trials`` (SciPy's); (0, 1) without trials."""
     if trials <= 0:
         return 0.0, 1.0
-    p = successes / trials
-    denom = 1 + z * z / trials
-    centre = (p + z * z / (2 * trials)) / denom
-    half = z * math.sqrt(p * (1 - p) / trials + z * z / (4 * trials * trials)) / denom
-    # the interval holds p itself: at p = 0 or 1 rounding must not put a bound past it
-    return max(0.0, min(p, centre - half)), min(1.0, max(p, centre + half))
+    ci = binomtest(int(successes), int(trials)).proportion_ci(confidence_level=confidence, method="wilson")
+    return float(ci.low), float(ci.high)
 
 
 def rate(successes: int, trials: int) -> dict[str, float | int]:

@@ -258,3 +258,14 @@ def test_non_finite_or_absurd_reset_options_are_refused(options):
     with pytest.raises(ValueError):
         env.reset(seed=0, options=options)
     env.close()
+
+
+def test_named_accessors_read_the_entries_they_name(env):
+    obs, _ = env.reset(seed=3, options={"theta0": 0.2, "omega0": -0.7, "x0": 0.1})
+    obs, *_ = env.step(np.array([0.3]))
+    assert env.pendulum_angle() == obs[IDX["theta"]] and env.pendulum_angular_velocity() == obs[IDX["omega"]]
+    centre = env.workspace_centre
+    assert env.flange_offset() == (obs[IDX["x"]], obs[IDX["ee_y"]] - centre[1], obs[IDX["ee_z"]] - centre[2])
+    assert env.flange_offset()[0] == pytest.approx(obs[IDX["ee_x"]] - centre[0])
+    tilt = obs[[IDX["ee_rx"], IDX["ee_ry"], IDX["ee_rz"]]]
+    assert env.flange_tilt_squared() == pytest.approx(float(tilt @ tilt))

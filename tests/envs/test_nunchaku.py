@@ -216,3 +216,14 @@ def test_non_finite_or_absurd_reset_options_are_refused(options):
     with pytest.raises(ValueError):
         env.reset(seed=0, options=options)
     env.close()
+
+
+def test_named_accessors_read_the_entries_they_name():
+    env = NunchakuEnv()
+    env.reset(seed=0)
+    obs, *_ = env.step(HOLD)
+    q = obs_of(obs, "hand_q")
+    assert env.wrist_vertical_load() == pytest.approx(obs_of(obs, "ft_fz") * math.cos(q) + obs_of(obs, "ft_fx") * math.sin(q))
+    assert env.back_of_hand_touch() == obs_of(obs, "touch")
+    # held still, the wrist carries the weight of the whole nunchaku and nothing touches the back of the hand
+    assert abs(env.wrist_vertical_load()) > 0.4 * 9.81 and env.back_of_hand_touch() == 0.0

@@ -78,8 +78,8 @@ def test_fast_mean_agrees_with_float64_and_eq5(which):
     kw = {"mean": "linear"} if which == "balance" else {}
     if which == "smooth_sparse":
         kw.update(sparse_threshold=500, n_inducing=200)
-    g = GPLaw(exact_var_max_n=None, **kw).fit(X, Y, theta=theta)
-    ref = clone(g).set_params(fast_exp=False).fit(X, Y, theta=theta)
+    g = GPLaw(exact_var_max_n=None, **kw, theta=theta).fit(X, Y)
+    ref = clone(g).set_params(fast_exp=False).fit(X, Y)
     Xq = states(X, np.random.default_rng(7))
     fast = np.array([g.predict_one(x) for x in Xq]).reshape(len(Xq), -1)
     f64 = np.array([ref.predict_one(x) for x in Xq]).reshape(len(Xq), -1)
@@ -107,7 +107,7 @@ def test_large_weights_keep_the_float64_path():
     rng = np.random.default_rng(3)
     X = rng.uniform(-1, 1, (800, 2))
     y = np.sin(3 * X[:, 0]) + X[:, 1] ** 2
-    g = GPLaw(exact_var_max_n=None).fit(X, y, theta=np.log([0.8, 0.8, 1.0, 1e-5]))
+    g = GPLaw(exact_var_max_n=None, theta=np.log([0.8, 0.8, 1.0, 1e-5])).fit(X, y)
     assert np.abs(g.alpha_).max() > 1e4
     assert not g._fast and g.fast_exp_error_ > FAST_EXP_PROBE_TOL
     Xq = states(X, rng, 100)
@@ -116,7 +116,7 @@ def test_large_weights_keep_the_float64_path():
 
 def test_predict_one_returns_a_new_array():
     X, Y, theta = smooth_law()
-    g = GPLaw(exact_var_max_n=None).fit(X[:300], Y[:300], theta=theta)
+    g = GPLaw(exact_var_max_n=None, theta=theta).fit(X[:300], Y[:300])
     a = g.predict_one(X[0])
     b = g.predict_one(X[1])
     assert a.dtype == np.float64 and a.shape == (2,) and not np.shares_memory(a, b)
@@ -146,7 +146,7 @@ def test_sparse_variance_matches_dense_fitc_formula(sparse_mean):
     X, Y = X[:600], Y[:600]
     theta = np.log([1.2, 3.0, 1.0, 3.0, 3.0, 1.0, 0.1])   # long length scales: Kmm well conditioned
     kw = dict(sparse_threshold=300) if sparse_mean else dict(exact_var_max_n=300)
-    g = GPLaw(n_inducing=40, **kw).fit(X, Y, theta=theta)
+    g = GPLaw(n_inducing=40, **kw, theta=theta).fit(X, Y)
     assert g.var_mode_ == "sparse" and (g.mode_ == "sparse") == sparse_mean
     Xq = states(X, np.random.default_rng(2), 60)
     var = np.array([g.predict_one_var(x)[1] for x in Xq])

@@ -1,5 +1,7 @@
 import shutil
 
+import pytest
+
 from multiform.cli import main
 from multiform.petri.revision import History, add_transition
 from multiform.petri.skillfile import bundled_skills
@@ -77,3 +79,14 @@ def test_export_and_draw_use_the_latest_version_and_say_so(tmp_path, capsys):
     assert main(["draw", str(model / "skill.yaml"), "-o", str(tmp_path / "latest.svg")]) == 0
     assert "drawing version 1" in capsys.readouterr().err
     assert "t7" in (tmp_path / "latest.svg").read_text()
+
+
+@pytest.mark.parametrize("command", [[], ["net"], ["demos"], ["check"], ["draw"], ["net", "diff"], ["net", "history"],
+                                     ["net", "export"], ["net", "import"], ["record"], ["demos", "info"],
+                                     ["demos", "export"], ["demos", "import"], ["teleop"], ["label"], ["train"],
+                                     ["practice"], ["evaluate"], ["demo"], ["replay"], ["report"]])
+def test_every_help_page_prints(command, capsys):
+    with pytest.raises(SystemExit) as info:
+        main([*command, "--help"])
+    assert info.value.code == 0
+    assert "usage: multiform" in capsys.readouterr().out

@@ -69,10 +69,9 @@ def test_history_replays_and_never_touches_original(skill_copy):
     original_bytes = skill_copy.read_bytes()
     hist = History(skill_copy)
     apn = hist.latest()
-    apn, r1 = set_condition(apn, "t1", "abs(theta) < 0.25", "relearn", version=hist.next_version())
+    apn, r1 = set_condition(apn, "t1", "abs(theta) < 0.25", "relearn")
     hist.record(r1)
-    apn, r2 = add_transition(apn, "t7", {"in": ["P2"], "out": ["P1"], "law": "swing_up"}, "disturbance",
-                             version=hist.next_version())
+    apn, r2 = add_transition(apn, "t7", {"in": ["P2"], "out": ["P1"], "law": "swing_up"}, "disturbance")
     hist.record(r2)
     versions = hist.versions()
     assert len(versions) == 3
@@ -107,18 +106,17 @@ def test_replaying_history_rebuilds_every_version(tmp_path_factory, steps):
     for op, k, u in steps:
         tids = apn.transition_ids
         tid = tids[k % len(tids)]
-        v = hist.next_version()
         if op == "lambda":
             group_total = sum(apn.transition(t).lam for t in (tid, *apn.siblings(tid)))
-            apn, rev = set_lambda(apn, tid, u * group_total, "random", version=v)
+            apn, rev = set_lambda(apn, tid, u * group_total, "random")
         elif op == "condition":
-            apn, rev = set_condition(apn, tid, f"abs(theta) < {u:.4f}", "random", version=v)
+            apn, rev = set_condition(apn, tid, f"abs(theta) < {u:.4f}", "random")
         elif op == "transition":
             new = apn.fresh_id("t")
             src, dst = apn.place_ids[k % len(apn.place_ids)], apn.place_ids[(k + 1) % len(apn.place_ids)]
-            apn, rev = add_transition(apn, new, {"in": [src], "out": [dst], "lambda": u}, "random", version=v)
+            apn, rev = add_transition(apn, new, {"in": [src], "out": [dst], "lambda": u}, "random")
         else:
-            apn, rev = add_place(apn, apn.fresh_id("P"), {"label": f"p{u:.3f}"}, "random", version=v)
+            apn, rev = add_place(apn, apn.fresh_id("P"), {"label": f"p{u:.3f}"}, "random")
         hist.record(rev)
         built.append(apn)
     replayed = hist.versions()

@@ -1,9 +1,12 @@
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from multiform.cli import main
 from multiform.errors import InvalidInput
+from multiform.petri.firing import NetRunner
+from multiform.petri.net import APN, Condition, Place, Transition
 from multiform.petri.skillfile import bundled_skills, dump_skill, load_skill, parse_skill
 
 MALFORMED = sorted((Path(__file__).parent / "malformed").glob("*.yaml"))
@@ -28,8 +31,7 @@ def test_malformed_file_fails_check_with_named_element(path, capsys, tmp_path, m
 
 @pytest.mark.parametrize("name", ["pendulum", "pendulum_strict", "nunchaku"])
 def test_bundled_skills_pass_check(name, capsys):
-    if name not in bundled_skills():
-        pytest.skip(f"{name} not bundled yet")
+    assert name in bundled_skills(), f"the bundled skill {name} is missing"
     assert main(["check", name]) == 0
     assert "check: ok" in capsys.readouterr().out
 
@@ -67,10 +69,33 @@ def test_pendulum_structure_matches_paper_fig5():
     assert strict.transition("t1").condition.guard.text == "theta == 0 and omega == 0 and x == 0"
 
 
-def test_incidence_matrix():
+def test_incidence_matrix_of_the_pendulum_net():
     apn = load_skill("pendulum")
-    A = apn.incidence
-    assert A.shape == (5, 7)
-    assert (A == apn.post - apn.pre).all()
-    assert A[apn.place_index("P1"), apn.transition_index("t2")] == 0      # self-loop
-    assert A[apn.place_index("P0"), apn.transition_index("t0")] == -1
+    assert apn.place_ids == ("P0", "P1", "P2", "done", "fail")
+    #                        t0  t1  t2  t3  t4  t5  t6     (t2, t3: self-loops)
+    expected = np.array([[-1,  0,  0,  0,  0,  0,  0],    # P0
+                         [ 1, -1,  0,  0, -1,  0,  0],    # P1
+                         [ 0,  1,  0,  0,  0, -1, -1],    # P2
+                         [ 0,  0,  0,  0,  0,  0,  1],    # done
+                         [ 0,  0,  0,  0,  1,  1,  0]])   # fail
+    assert (apn.incidence == expected).all()
+
+
+def test_firing_moves_the_marking_by_its_column_of_a_weighted_net():
+    t = lambda tid, i, o: Transition(tid, i, o, None, 1.0, Condition.always())  # noqa: E731
+    apn = APN(name="weighted", places=(Place("A"), Place("B"), Place("C"), Place("end", final="success")),
+              transitions=(t("t0", {"A": 2}, {"B": 1, "C": 3}), t("t1", {"B": 1, "C": 1}, {"A": 1}),
+                           t("t2", {"C": 2}, {"end": 1})),
+              initial_marking={"A": 4})
+    columns = {"t0": [-2, 1, 3, 0], "t1": [1, -1, -1, 0], "t2": [0, 0, -2, 1]}
+    assert (apn.incidence == np.array([columns[k] for k in ("t0", "t1", "t2")]).T).all()
+    runner = NetRunner(apn, [])
+    assert runner.marking_dict() == {"A": 4}
+    with pytest.raises(RuntimeError, match="t1 fired while not enabled"):
+        runner.fire(apn.transition_index("t1"))
+    runner.reset()
+    for tid in ("t0", "t1", "t0", "t2"):
+        before = np.array(runner.marking)
+        runner.fire(apn.transition_index(tid))
+        assert (np.array(runner.marking) - before == columns[tid]).all(), tid
+    assert runner.marking_dict() == {"A": 1, "B": 1, "C": 3, "end": 1} and runner.outcome == "success"

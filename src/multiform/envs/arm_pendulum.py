@@ -91,6 +91,8 @@ TERMINATE_TILT = 1.0
 SUCCESS_ANGLE = 0.5         # rad: "upright" for the reward and is_success
 SUCCESS_HOLD = 5.0          # s upright without a break: is_success
 _OBJ_SITE = int(mujoco.mjtObj.mjOBJ_SITE)
+_THETA, _OMEGA, _X, _EY, _EZ, _RX, _RY, _RZ = (OBSERVATION_NAMES.index(n) for n in (
+    "theta", "omega", "x", "ee_y", "ee_z", "ee_rx", "ee_ry", "ee_rz"))
 _OPTIONS = ("length", "mass", "damping", "randomize", "theta0", "omega0", "x0", "disturbances")
 
 
@@ -333,19 +335,38 @@ class ArmPendulumEnv(gym.Env):
         o = self._obs_list
         s = sum(o)
         non_finite = bool(s - s)                  # NaN or ±inf somewhere
-        if non_finite or abs(o[1]) > 1e3:
+        if non_finite or abs(self.pendulum_angular_velocity()) > 1e3:
             obs = np.zeros(len(OBSERVATION_NAMES))
             self._upright = 0
             return obs, 0.0, True, False, {"diverged": True, "non_finite": non_finite, "out_of_workspace": False,
                                            "disturbance": self._applied, "is_success": False}
-        c = self.workspace_centre
-        out = (abs(o[2]) > TERMINATE_X or abs(o[5] - c[1]) > TERMINATE_YZ or abs(o[6] - c[2]) > TERMINATE_YZ
-               or o[10] * o[10] + o[11] * o[11] + o[12] * o[12] > TERMINATE_TILT ** 2)
-        upright = abs(o[0]) < SUCCESS_ANGLE
+        dx, dy, dz = self.flange_offset()
+        out = (abs(dx) > TERMINATE_X or abs(dy) > TERMINATE_YZ or abs(dz) > TERMINATE_YZ
+               or self.flange_tilt_squared() > TERMINATE_TILT ** 2)
+        upright = abs(self.pendulum_angle()) < SUCCESS_ANGLE
         self._upright = self._upright + 1 if upright else 0
         return obs, self.dt if upright else 0.0, out, False, {
             "diverged": False, "out_of_workspace": out, "disturbance": self._applied,
             "is_success": self._upright >= self._hold_steps}
+
+    # -- named views of the last observation (as dm_control's cartpole has physics.pole_angle_cosine())
+    def pendulum_angle(self) -> float:
+        """θ, 0 upright, wrapped to (-π, π] [rad]."""
+        return self._obs_list[_THETA]
+
+    def pendulum_angular_velocity(self) -> float:
+        """ω [rad/s]."""
+        return self._obs_list[_OMEGA]
+
+    def flange_offset(self) -> tuple[float, float, float]:
+        """The flange's position relative to the workspace centre, world x, y, z [m]."""
+        o, c = self._obs_list, self.workspace_centre
+        return o[_X], o[_EY] - c[1], o[_EZ] - c[2]
+
+    def flange_tilt_squared(self) -> float:
+        """Squared angle of the flange's orientation away from its home orientation [rad²]."""
+        o = self._obs_list
+        return o[_RX] * o[_RX] + o[_RY] * o[_RY] + o[_RZ] * o[_RZ]
 
     @property
     def last_torques(self) -> np.ndarray:

@@ -134,6 +134,8 @@ class LoadEstimator:
             return (gx * c1 + gz * s1) / l1, 0.0, mc * gx, mc * gz
         return a1, a2, fx + mc * gx, fz + mc * gz
 
+    # One function on purpose: a filter step run every millisecond on scalars, where calls would cost
+    # more than the arithmetic.
     def update(self, f_hand: tuple[float, float], q: float, w: float, alpha: float,
                ax: float, az: float, dt: float) -> tuple[float, float]:
         """One filter step; returns (angle, rate) of the free rod relative to the hand.

@@ -111,7 +111,7 @@ WORKSPACE = 0.5                    # |hand_x|, |hand_z| limit of the reference [
 PROX_RANGE = 0.1
 FLIP_TOUCH = 0.5                   # N on the back of the hand: the chain rolled over it
 FLIP_HOLD = 0.5                    # s the caught rod must stay in the palm
-_TOUCH = OBSERVATION_NAMES.index("touch")
+_Q, _FX, _FZ, _TOUCH = (OBSERVATION_NAMES.index(n) for n in ("hand_q", "ft_fx", "ft_fz", "touch"))
 _BAD = tuple(int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
                                 mujoco.mjtWarning.mjWARN_BADQACC))
 
@@ -166,6 +166,7 @@ class NunchakuEnv(gym.Env):
         self.action_space = gym.spaces.Box(np.array([-3.0, -3.0, -20.0, 0.0]), np.array([3.0, 3.0, 20.0, 1.0]),
                                            dtype=np.float64)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (len(OBSERVATION_NAMES),), dtype=np.float64)
+        self._obs = np.zeros(len(OBSERVATION_NAMES))
         self._action_box: tuple[np.ndarray, np.ndarray] | None = None
         if normalize_actions:
             self._action_box = (self.action_space.low.copy(), self.action_space.high.copy())
@@ -273,7 +274,7 @@ class NunchakuEnv(gym.Env):
             obs, _, terminated, _, _ = self._step(hold)
             if terminated:
                 break
-            load += obs[7] * math.cos(obs[2]) + obs[6] * math.sin(obs[2])
+            load += self.wrist_vertical_load()
         if n_settle:
             hand_weight = self.model.body_mass[self._hand] * 9.81
             self.estimator.weigh(load / n_settle - hand_weight)
@@ -313,15 +314,15 @@ class NunchakuEnv(gym.Env):
         obs, _, terminated, truncated, info = self._step(action)
         done_before = self._flip["done"]
         if not info["diverged"]:
-            self._track_flip(obs)
+            self._track_flip()
         info["is_success"] = self._flip["done"]
         return obs, float(self._flip["done"] and not done_before), terminated, truncated, info
 
-    def _track_flip(self, obs: np.ndarray) -> None:
+    def _track_flip(self) -> None:
         f = self._flip
         if self._held < 0:
             f["released"] = True
-            f["touched"] = f["touched"] or obs[_TOUCH] > FLIP_TOUCH
+            f["touched"] = f["touched"] or self.back_of_hand_touch() > FLIP_TOUCH
         f["held_b"] = f["held_b"] + 1 if self._held == 1 else 0
         if f["released"] and f["touched"] and f["held_b"] * self.dt >= FLIP_HOLD - 1e-9:
             f["done"] = True
@@ -354,7 +355,7 @@ class NunchakuEnv(gym.Env):
         diverged = (warn[_BAD[0]].number + warn[_BAD[1]].number + warn[_BAD[2]].number != nbad
                     or not (np.isfinite(d.qvel).all() and abs(d.qvel).max() < 1e4))
         if diverged:
-            obs = np.zeros(len(OBSERVATION_NAMES))
+            obs = self._obs = np.zeros(len(OBSERVATION_NAMES))
             info = {"diverged": True, "non_finite": not np.isfinite(d.qvel).all(), "dropped": False,
                     "scene": {}, "truth": {}, "is_success": False}
             return obs, 0.0, True, False, info
@@ -483,8 +484,19 @@ class NunchakuEnv(gym.Env):
             r = sd[s[k]]
             if 0.0 <= r < prox:
                 prox = r
-        return np.array([x, z, q, vx, vz, w, fx, fz, -ty, 1.0 if self._held >= 0 else 0.0,
-                         sd[s["back_touch"]], prox, self._phi, self._omega, self._load])
+        self._obs = np.array([x, z, q, vx, vz, w, fx, fz, -ty, 1.0 if self._held >= 0 else 0.0,
+                              sd[s["back_touch"]], prox, self._phi, self._omega, self._load])
+        return self._obs
+
+    # -- named views of the last observation (as dm_control's cartpole has physics.pole_angle_cosine())
+    def wrist_vertical_load(self) -> float:
+        """The wrist force sensor's reading along world z (hand frame turned by ``hand_q``) [N]."""
+        o = self._obs
+        return o[_FZ] * math.cos(o[_Q]) + o[_FX] * math.sin(o[_Q])
+
+    def back_of_hand_touch(self) -> float:
+        """The touch sensor on the back of the hand: the chain rolling over it [N]."""
+        return self._obs[_TOUCH]
 
     def _info(self, dropped: bool) -> dict[str, Any]:
         d = self.data

@@ -1,6 +1,7 @@
 """Reference controller of the arm-pendulum: end-effector velocity command → joint torques.
 
-Split in two because the learned auxiliary inverse model (issue 4) later replaces the second half:
+Split in two because the learned auxiliary inverse model (:mod:`multiform.learn.inverse`) takes the
+place of the second half and is compared with it:
 
 1. :func:`task_acceleration` — the desired end-effector task acceleration (linear x, y, z, angular
    x, y, z in the world frame), computed *only from the observation vector*, so the robot's runtime

@@ -164,13 +164,16 @@ class GPLaw(BaseEstimator, RegressorMixin):
     random_state: seed for the hyperparameter subset, restarts and k-means.
     fast_exp: the one-state mean (:meth:`predict_one`) takes its kernel exponentials in float32
         (module docstring); False keeps it float64 throughout.
+    theta: fixed hyperparameters [log l…, log σf, log σn] in standardised units (one length scale,
+        or one per input with ``ard``); None (default): trained by maximum marginal likelihood.
     """
 
     def __init__(self, ard: bool = True, n_hyper: int = 1000, n_restarts: int = 2, max_iter: int = 200,
                  sparse_threshold: int | None = 3000, n_inducing: int = 300, sparse_method: str = "fitc",
                  exact_var_max_n: int | None = 500, input_names: Sequence[str] | None = None,
                  output_names: Sequence[str] | None = None, n_threads: int | None = 1,
-                 mean: str = "constant", random_state: int = 0, fast_exp: bool = True):
+                 mean: str = "constant", random_state: int = 0, fast_exp: bool = True,
+                 theta: Sequence[float] | np.ndarray | None = None):
         self.ard = ard
         self.n_hyper = n_hyper
         self.n_restarts = n_restarts
@@ -185,18 +188,19 @@ class GPLaw(BaseEstimator, RegressorMixin):
         self.mean = mean
         self.random_state = random_state
         self.fast_exp = fast_exp
+        self.theta = theta
 
     # -- fitting ------------------------------------------------------------------------------
-    def fit(self, X: np.ndarray, y: np.ndarray, theta: np.ndarray | None = None) -> GPLaw:
-        """Train hyperparameters (unless ``theta`` = [log l…, log σf, log σn] is given, in
-        standardised units) and solve the posterior on all of ``X`` (n, d), ``y`` (n,) or (n, p)."""
+    def fit(self, X: np.ndarray, y: np.ndarray) -> GPLaw:
+        """Train the hyperparameters (unless the constructor fixed ``theta``) and solve the posterior
+        on all of ``X`` (n, d), ``y`` (n,) or (n, p)."""
         X, y = check_X_y(X, y, multi_output=True, y_numeric=True, dtype=np.float64)
         self._check_params(X.shape[1], 1 if y.ndim == 1 else y.shape[1])
         if self.n_threads is None:
-            return self._fit(X, y, theta)
+            return self._fit(X, y, self.theta)
         from threadpoolctl import threadpool_limits
         with threadpool_limits(limits=self.n_threads):
-            return self._fit(X, y, theta)
+            return self._fit(X, y, self.theta)
 
     def _check_params(self, d: int, p: int) -> None:
         if self.mean not in MEANS:
@@ -209,7 +213,7 @@ class GPLaw(BaseEstimator, RegressorMixin):
             if names is not None and len(names) != k:
                 raise ValueError(f"{what} has {len(names)} names but the data has {k} columns")
 
-    def _fit(self, X: np.ndarray, y: np.ndarray, theta: np.ndarray | None) -> GPLaw:
+    def _fit(self, X: np.ndarray, y: np.ndarray, theta: Sequence[float] | np.ndarray | None) -> GPLaw:
         t0 = time.perf_counter()
         self.y_1d_ = y.ndim == 1
         Y = y.reshape(len(y), -1)
@@ -478,11 +482,15 @@ class GPLaw(BaseEstimator, RegressorMixin):
     # -- evaluation and reporting ------------------------------------------------------------------
     def heldout_error(self, X: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Normalised RMSE per output (RMSE / standard deviation of the held-out targets) on data not
-        used for fitting; remembered in ``heldout_nrmse_`` for :meth:`summary` and saved files."""
+        used for fitting."""
         pred = self.predict(X).reshape(len(X), -1)
         Y = np.asarray(y, dtype=np.float64).reshape(len(X), -1)
         rmse = np.sqrt(np.mean((pred - Y) ** 2, axis=0))
-        self.heldout_nrmse_ = rmse / _safe_scale(Y.std(axis=0))
+        return rmse / _safe_scale(Y.std(axis=0))
+
+    def record_heldout_error(self, X: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """:meth:`heldout_error`, kept in ``heldout_nrmse_`` for :meth:`summary` and saved files."""
+        self.heldout_nrmse_ = self.heldout_error(X, y)
         return self.heldout_nrmse_
 
     def summary(self) -> dict[str, Any]:
@@ -522,7 +530,8 @@ class GPLaw(BaseEstimator, RegressorMixin):
             value = getattr(self, attr)
             if value is not None:
                 arrays[key] = value
-        params = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.get_params().items()}
+        params = {k: (list(v) if isinstance(v, (tuple, np.ndarray)) else v) for k, v in self.get_params().items()
+                  if not (k == "theta" and v is None)}    # files without fixed hyperparameters read as before
         meta = {"params": params, "mode": self.mode_, "var_mode": self.var_mode_,
                 "n_train": int(self.n_train_), "n_features": int(self.n_features_in_),
                 "n_outputs": int(self.n_outputs_), "y_1d": bool(self.y_1d_),

@@ -16,7 +16,7 @@ With ℓ the log-density, τ its ``1 - coverage`` quantile and m its median on t
 
 so a score of 0.5 is the region's boundary (``coverage`` of the place's own unseen states score
 ≥ 0.5), a typical state of the place scores 0.9, and a state far from it tends to 0. A state
-belongs to the best-scoring place if that score is ≥ ``threshold_`` (0.5); otherwise no place
+belongs to the best-scoring place if that score is ≥ 0.5 (its logit ≥ 0); otherwise no place
 relates to it.
 """
 
@@ -98,10 +98,8 @@ class PlaceRegions(BaseEstimator):
     """Per-place state-space regions over ``input_names``; see the module docstring.
 
     After :meth:`fit`: ``places_``, ``mean_`` / ``scale_`` (shared standardisation),
-    ``components_`` (mixture size per place), ``n_samples_`` per place, ``threshold_`` (0.5).
+    ``components_`` (mixture size per place), ``n_samples_`` per place.
     """
-
-    threshold_ = 0.5
 
     def __init__(self, input_names: Sequence[str] = (), max_components: int = 6, coverage: float = 0.98,
                  reg_covar: float = 1e-3, max_samples: int = 4000, random_state: int = 0):
@@ -200,6 +198,10 @@ class PlaceRegions(BaseEstimator):
         self._tau_shifted = self._tau - self._amax
         self._index = {p: i for i, p in enumerate(self.places_)}
 
+    def place_index(self, place: str) -> int:
+        """The column of ``place`` in :meth:`logits` and :meth:`logits_one` (``places_`` order)."""
+        return self._index[place]
+
     def logits_one(self, x: np.ndarray) -> np.ndarray:
         """z per place (``places_`` order) for one raw state; the control-rate path.
 
@@ -232,20 +234,20 @@ class PlaceRegions(BaseEstimator):
 
     def score_one(self, x: np.ndarray, place: str) -> float:
         """One place's score for one state."""
-        return float(_sigmoid(self.logits_one(np.asarray(x, dtype=np.float64))[self._index[place]]))
+        return float(_sigmoid(self.logits_one(np.asarray(x, dtype=np.float64))[self.place_index(place)]))
 
     def best(self, X: np.ndarray) -> list[str | None]:
-        """Per row, the best-matching place, or None when no place's score reaches ``threshold_``."""
+        """Per row, the best-matching place, or None when no place's score reaches 0.5."""
         Z = self.logits(X)
         k = Z.argmax(1)
         return [self.places_[i] if Z[r, i] >= 0.0 else None for r, i in enumerate(k)]
 
     def belongs(self, X: np.ndarray, place: str) -> np.ndarray:
-        """Per row: ``place`` scores at least ``threshold_``."""
-        return self.logits(X)[:, self._index[place]] >= 0.0
+        """Per row: ``place`` scores at least 0.5."""
+        return self.logits(X)[:, self.place_index(place)] >= 0.0
 
     def coverage_on(self, samples: Mapping[str, np.ndarray]) -> dict[str, float]:
-        """Fraction of each place's given states that score ≥ ``threshold_`` for that place."""
+        """Fraction of each place's given states that score ≥ 0.5 for that place."""
         return {p: float(self.belongs(X, p).mean()) for p, X in samples.items() if p in self.densities_}
 
     # -- conditions the repair operators add --------------------------------------------------------
@@ -360,8 +362,8 @@ class RegionCondition:
         self.regions, self.mode, self.into, self.rather_than = regions, mode, into, rather_than
         self.leave_below = float(leave_below)
         self.input_names = tuple(regions.input_names)
-        self._i = regions._index[into] if into else -1
-        self._j = regions._index[rather_than] if rather_than else -1
+        self._i = regions.place_index(into) if into else -1
+        self._j = regions.place_index(rather_than) if rather_than else -1
         # "outside": every place below 0, the place being left below its own (lower) bound
         self._outside_bound = np.zeros(len(regions.places_))
         if self._j >= 0:

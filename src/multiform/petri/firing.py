@@ -1,6 +1,6 @@
 """Marking, clocks and the stochastic firing rule: one trial's run of an APN, tick by tick.
 
-The tick (called once per control step, see the README's "Tick semantics"):
+The tick (called once per control step, see "Tick semantics" in docs/skill-files.md):
 
 1. the state variables are read, derived variables computed, clocks updated (``time``,
    ``dwell_<place>`` = seconds since the place last received a token, ``fires_<t>``);

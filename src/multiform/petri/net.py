@@ -246,10 +246,6 @@ class APN:
             m[self._place_index[p]] = n
         return m
 
-    @cached_property
-    def lambdas(self) -> np.ndarray:
-        return np.array([t.lam for t in self.transitions], dtype=np.float64)
-
     def siblings(self, tid: str) -> tuple[str, ...]:
         """Transitions with the same input places as ``tid`` (its choice group), itself excluded."""
         pre = self.transition(tid).preset

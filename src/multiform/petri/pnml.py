@@ -236,20 +236,7 @@ def from_pnml(text: str | bytes, file: str = "<string>") -> APN:
     data: dict[str, Any] = {"skill": name, **skill}
     problems: list[Problem] = []
 
-    elements: dict[tuple[str, str], ET.Element] = {}
-    order: list[tuple[str, str, str | None]] = []
-    for el in nodes:
-        kind = _local(el.tag)
-        if kind not in ("place", "transition"):
-            continue
-        oid = el.get("id")
-        if not oid:
-            problems.append(Problem(file, kind, "element without an id"))
-        elif (kind, oid) in elements:
-            problems.append(Problem(file, f"{kind} {oid}", f"duplicate id: a second <{kind}> with id {oid!r}"))
-        else:
-            elements[(kind, oid)] = el
-            order.append((kind, oid, _text_of(_find(el, "name"))))
+    elements, order = _elements(nodes, file, problems)
     ids = _valid_ids(order) if ours is None else {(k, o): o for k, o, _ in order}
     final_ids = _final_marking(net, {o for k, o in elements if k == "place"}, file, problems)
 
@@ -264,38 +251,88 @@ def from_pnml(text: str | bytes, file: str = "<string>") -> APN:
         label = label if label != pid else ""
         where = f"{kind} {oid}"
         if kind == "place":
-            extra = _json(_find(_tool(el, TOOL), "place"), "place", file, where)
-            spec: dict[str, Any] = {"label": extra.get("label", label) or ""}
-            if extra.get("final"):
-                spec["final"] = extra["final"]
-            elif "final" not in extra and oid in final_ids:
-                spec["final"] = "success"
-            if extra.get("judge"):
-                spec["judge"] = extra["judge"]
-            places[pid] = spec
+            places[pid] = _place_spec(el, label, oid in final_ids, where, file)
             m = _text_of(_find(el, "initialMarking"))
             if m:
                 n = _count(m, "initial marking", where, file, problems)
                 if n:
                     marking[pid] = n
         else:
-            extra = _json(_find(_tool(el, TOOL), "transition"), "transition", file, where)
-            spec = {"in": {}, "out": {}, "label": extra.get("label", label) or ""}
-            sto = _tool(el, "StochasticPetriNet")
-            if sto is not None:
-                for prop in _findall(sto, "property"):
-                    if prop.get("key") == "weight":
-                        w = (prop.text or "").strip()
-                        try:
-                            spec["lambda"] = float(w)
-                        except ValueError:
-                            spec["lambda"] = w if len(w) <= 40 else f"{w[:20]}...({len(w)} characters)"
-            if extra.get("law"):
-                spec["law"] = extra["law"]
-            if "condition" in extra:
-                spec["condition"] = extra["condition"]
-            transitions[pid] = spec
+            transitions[pid] = _transition_spec(el, label, where, file)
 
+    _add_arcs(nodes, elements, ids, transitions, file, problems)
+    if ours is None and not final_ids and not any(s.get("final") for s in places.values()):
+        feeding = {p for t in transitions.values() for p in t["in"]}
+        for pid, spec in places.items():
+            if pid not in feeding and pid not in marking:
+                spec["final"] = "success"
+    data["places"] = places
+    data["transitions"] = transitions
+    data["initial_marking"] = marking
+    apn = build_apn(data, file, problems)
+    if problems:
+        raise InvalidInput(problems)
+    return apn
+
+
+def _elements(nodes: list[ET.Element], file: str, problems: list[Problem]
+              ) -> tuple[dict[tuple[str, str], ET.Element], list[tuple[str, str, str | None]]]:
+    """Places and transitions by (kind, id), and (kind, id, name) in document order."""
+    elements: dict[tuple[str, str], ET.Element] = {}
+    order: list[tuple[str, str, str | None]] = []
+    for el in nodes:
+        kind = _local(el.tag)
+        if kind not in ("place", "transition"):
+            continue
+        oid = el.get("id")
+        if not oid:
+            problems.append(Problem(file, kind, "element without an id"))
+        elif (kind, oid) in elements:
+            problems.append(Problem(file, f"{kind} {oid}", f"duplicate id: a second <{kind}> with id {oid!r}"))
+        else:
+            elements[(kind, oid)] = el
+            order.append((kind, oid, _text_of(_find(el, "name"))))
+    return elements, order
+
+
+def _place_spec(el: ET.Element, label: str, in_final_marking: bool, where: str, file: str) -> dict[str, Any]:
+    """A place's skill-file entry; without our data, a place of the final marking is a success."""
+    extra = _json(_find(_tool(el, TOOL), "place"), "place", file, where)
+    spec: dict[str, Any] = {"label": extra.get("label", label) or ""}
+    if extra.get("final"):
+        spec["final"] = extra["final"]
+    elif "final" not in extra and in_final_marking:
+        spec["final"] = "success"
+    if extra.get("judge"):
+        spec["judge"] = extra["judge"]
+    return spec
+
+
+def _transition_spec(el: ET.Element, label: str, where: str, file: str) -> dict[str, Any]:
+    """A transition's skill-file entry (arcs still empty): λ from the stochastic weight, the rest
+    from our toolspecific data."""
+    extra = _json(_find(_tool(el, TOOL), "transition"), "transition", file, where)
+    spec: dict[str, Any] = {"in": {}, "out": {}, "label": extra.get("label", label) or ""}
+    sto = _tool(el, "StochasticPetriNet")
+    if sto is not None:
+        for prop in _findall(sto, "property"):
+            if prop.get("key") == "weight":
+                w = (prop.text or "").strip()
+                try:
+                    spec["lambda"] = float(w)
+                except ValueError:
+                    spec["lambda"] = w if len(w) <= 40 else f"{w[:20]}...({len(w)} characters)"
+    if extra.get("law"):
+        spec["law"] = extra["law"]
+    if "condition" in extra:
+        spec["condition"] = extra["condition"]
+    return spec
+
+
+def _add_arcs(nodes: list[ET.Element], elements: dict[tuple[str, str], ET.Element],
+              ids: dict[tuple[str, str], str], transitions: dict[str, Any], file: str,
+              problems: list[Problem]) -> None:
+    """Enter every <arc> into its transition's ``in`` or ``out``, each problem named."""
     for el in nodes:
         if _local(el.tag) != "arc":
             continue
@@ -326,18 +363,6 @@ def from_pnml(text: str | bytes, file: str = "<string>") -> APN:
             problems.append(Problem(file, where, f"duplicate arc {src} -> {dst}"))
         else:
             arcs[p] = w
-    if ours is None and not final_ids and not any(s.get("final") for s in places.values()):
-        feeding = {p for t in transitions.values() for p in t["in"]}
-        for pid, spec in places.items():
-            if pid not in feeding and pid not in marking:
-                spec["final"] = "success"
-    data["places"] = places
-    data["transitions"] = transitions
-    data["initial_marking"] = marking
-    apn = build_apn(data, file, problems)
-    if problems:
-        raise InvalidInput(problems)
-    return apn
 
 
 def _final_marking(net: ET.Element, place_ids: set[str], file: str, problems: list[Problem]) -> set[str]:

@@ -34,7 +34,7 @@ OPERATORS = ("set_lambda", "set_condition", "add_transition", "add_place", "refi
 class Revision:
     """One recorded change of the net."""
 
-    version: int                   # the version this revision creates (the original is version 0)
+    version: int                   # the version it creates (the original is 0); 0 until History.record numbers it
     operator: str
     target: str
     reason: str
@@ -64,10 +64,6 @@ def _now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
 
 
-def _next_version(apn: APN, version: int | None) -> int:
-    return int(version) if version is not None else 1
-
-
 def _check(problems: list[Problem]) -> None:
     if problems:
         raise InvalidInput(problems)
@@ -75,8 +71,8 @@ def _check(problems: list[Problem]) -> None:
 
 # -- the operators --------------------------------------------------------------------------------
 
-def set_lambda(apn: APN, transition: str, value: float, reason: str, evidence: Mapping[str, Any] | None = None,
-               version: int | None = None) -> tuple[APN, Revision]:
+def set_lambda(apn: APN, transition: str, value: float, reason: str,
+               evidence: Mapping[str, Any] | None = None) -> tuple[APN, Revision]:
     """Set λ of ``transition`` and renormalise its siblings (same input places).
 
     The choice group's total λ stays what it was: the siblings share what is left in proportion to
@@ -102,14 +98,14 @@ def set_lambda(apn: APN, transition: str, value: float, reason: str, evidence: M
     out = apn
     for t, lam in new.items():
         out = out.with_transition(replace(out.transition(t), lam=float(lam)))
-    rev = Revision(version=_next_version(apn, version), operator="set_lambda", target=transition,
+    rev = Revision(version=0, operator="set_lambda", target=transition,
                    reason=reason, params={"transition": transition, "lambda": float(value)},
                    before={"lambda": old}, after={"lambda": new}, evidence=dict(evidence or {}), time=_now())
     return out, rev
 
 
 def set_condition(apn: APN, transition: str, condition: str | Mapping[str, str], reason: str,
-                  evidence: Mapping[str, Any] | None = None, version: int | None = None) -> tuple[APN, Revision]:
+                  evidence: Mapping[str, Any] | None = None) -> tuple[APN, Revision]:
     """Replace the condition of ``transition`` with an expression or ``{"model": name}``."""
     if transition not in apn.transition_ids:
         raise InvalidInput(f"unknown transition {transition!r}", element="set_condition")
@@ -120,7 +116,7 @@ def set_condition(apn: APN, transition: str, condition: str | Mapping[str, str],
     _check(problems)
     t = apn.transition(transition)
     out = apn.with_transition(replace(t, condition=cond))
-    rev = Revision(version=_next_version(apn, version), operator="set_condition", target=transition,
+    rev = Revision(version=0, operator="set_condition", target=transition,
                    reason=reason, params={"transition": transition, "condition": cond.to_data()},
                    before={"condition": t.condition.to_data()}, after={"condition": cond.to_data()},
                    evidence=dict(evidence or {}), time=_now())
@@ -128,7 +124,7 @@ def set_condition(apn: APN, transition: str, condition: str | Mapping[str, str],
 
 
 def add_transition(apn: APN, transition: str, spec: Mapping[str, Any], reason: str,
-                   evidence: Mapping[str, Any] | None = None, version: int | None = None) -> tuple[APN, Revision]:
+                   evidence: Mapping[str, Any] | None = None) -> tuple[APN, Revision]:
     """Add a new transition described like in a skill file (``in``, ``out``, ``law``, ...)."""
     if transition in apn.transition_ids or transition in apn.place_ids:
         raise InvalidInput(f"id {transition!r} is already used", element="add_transition")
@@ -141,14 +137,14 @@ def add_transition(apn: APN, transition: str, spec: Mapping[str, Any], reason: s
         bad(f"transitions.{transition}", "a transition needs at least one arc")
     _check(problems)
     out = apn.with_transition(t)
-    rev = Revision(version=_next_version(apn, version), operator="add_transition", target=transition,
+    rev = Revision(version=0, operator="add_transition", target=transition,
                    reason=reason, params={"transition": transition, "spec": t.to_data()},
                    before=None, after=t.to_data(), evidence=dict(evidence or {}), time=_now())
     return out, rev
 
 
 def add_place(apn: APN, place: str, spec: Mapping[str, Any] | None, reason: str,
-              evidence: Mapping[str, Any] | None = None, version: int | None = None) -> tuple[APN, Revision]:
+              evidence: Mapping[str, Any] | None = None) -> tuple[APN, Revision]:
     """Add a new place (``label``, optional ``judge``); connect it with :func:`add_transition`."""
     if place in apn.place_ids or place in apn.transition_ids:
         raise InvalidInput(f"id {place!r} is already used", element="add_place")
@@ -156,14 +152,14 @@ def add_place(apn: APN, place: str, spec: Mapping[str, Any] | None, reason: str,
     (p,) = parse_places({place: dict(spec or {})}, lambda el, msg: problems.append(Problem("", el, msg))) or (None,)
     _check(problems)
     out = apn.with_place(p)
-    rev = Revision(version=_next_version(apn, version), operator="add_place", target=place, reason=reason,
+    rev = Revision(version=0, operator="add_place", target=place, reason=reason,
                    params={"place": place, "spec": p.to_data()}, before=None, after=p.to_data(),
                    evidence=dict(evidence or {}), time=_now())
     return out, rev
 
 
-def refit_law(apn: APN, law: str, fit: str, reason: str, evidence: Mapping[str, Any] | None = None,
-              version: int | None = None) -> tuple[APN, Revision]:
+def refit_law(apn: APN, law: str, fit: str, reason: str,
+              evidence: Mapping[str, Any] | None = None) -> tuple[APN, Revision]:
     """Point ``law`` at the fitted law ``fit`` (a model directory's ``laws/<fit>.npz``)."""
     if law not in apn.laws:
         raise InvalidInput(f"unknown law {law!r}", element="refit_law")
@@ -171,20 +167,20 @@ def refit_law(apn: APN, law: str, fit: str, reason: str, evidence: Mapping[str, 
         raise InvalidInput(f"not a valid fit name: {fit!r}", element=f"laws.{law}.fit")
     old = apn.laws[law]
     out = replace(apn, laws={**apn.laws, law: replace(old, fit="" if fit == law else fit)})
-    rev = Revision(version=_next_version(apn, version), operator="refit_law", target=law, reason=reason,
+    rev = Revision(version=0, operator="refit_law", target=law, reason=reason,
                    params={"law": law, "fit": fit}, before={"fit": old.fit_name}, after={"fit": fit},
                    evidence=dict(evidence or {}), time=_now())
     return out, rev
 
 
-def revert(apn: APN, to_version: int, net: APN, reason: str, evidence: Mapping[str, Any] | None = None,
-           version: int | None = None) -> tuple[APN, Revision]:
+def revert(apn: APN, to_version: int, net: APN, reason: str,
+           evidence: Mapping[str, Any] | None = None) -> tuple[APN, Revision]:
     """Go back to ``net``, the net as it was at ``to_version``; the revision holds that net whole,
     so replaying it needs nothing but the record."""
     if not isinstance(to_version, int) or to_version < 0:
         raise InvalidInput(f"to_version must be a version number >= 0, got {to_version!r}", element="revert")
     data = skill_to_data(net)
-    rev = Revision(version=_next_version(apn, version), operator="revert", target=f"version {to_version}",
+    rev = Revision(version=0, operator="revert", target=f"version {to_version}",
                    reason=reason, params={"to_version": to_version, "net": data},
                    before={"laws": {k: v.fit_name for k, v in apn.laws.items()}},
                    after={"laws": {k: v.fit_name for k, v in net.laws.items()}},
@@ -273,12 +269,12 @@ class History:
             raise InvalidInput(f"no version {n}: versions are 0..{len(nets) - 1}", file=str(self.path))
         return nets[n]
 
-    def record(self, rev: Revision) -> None:
-        """Append ``rev`` (its version must be the next one)."""
-        expected = len(self.revisions()) + 1
-        if rev.version != expected:
-            rev = replace(rev, version=expected)
+    def record(self, rev: Revision) -> Revision:
+        """Append ``rev`` as the next version and return it so numbered: the history alone numbers versions."""
+        rev = replace(rev, version=self.next_version())
         append_jsonl(self.path, rev.to_json())
+        return rev
 
     def next_version(self) -> int:
+        """The number the next recorded revision gets."""
         return len(self.revisions()) + 1

@@ -2,7 +2,7 @@
 
 Validation collects *all* problems of a file before failing, each naming the file, the element
 (``transitions.t1.condition``) and what is wrong, so a person fixes a file in one pass. The format
-is documented in the README.
+is documented in docs/skill-files.md.
 """
 
 from __future__ import annotations
