@@ -419,9 +419,8 @@ class Practice:
         return set()
 
     def _record(self, state: PracticeState, rev: Revision, diagnosis: dict[str, Any] | None = None) -> int:
-        v = self.model.history.next_version()
-        rev = replace(rev, version=v, evidence={**rev.evidence, "scenario": self.name})
-        self.model.history.record(rev)
+        rev = self.model.history.record(replace(rev, evidence={**rev.evidence, "scenario": self.name}))
+        v = rev.version
         state.revisions.append({"version": v, "operator": rev.operator, "target": rev.target, "reason": rev.reason,
                                 "after_trial": state.trial - 1, "scenario": self.name,
                                 **({"diagnosis": diagnosis} if diagnosis is not None else {})})

@@ -100,7 +100,7 @@ def physical_success(trace: Trace) -> bool:
 TASK = "pendulum"
 DEMOS = 40                         # the main job's demonstrations. With 80 the P1 judge improves (91 % ->
                                    # 96-98 % on unseen segments) but laws and t1 fitted on them did worse in
-                                   # closed loop (unpushed 14/20 against 20/20): see the README's "Measured"
+                                   # closed loop (unpushed 14/20 against 20/20): see docs/measurements.md
 DESCRIPTION = ("A 6-axis arm (AUBO i5 kinematics, MuJoCo) learns to swing up and balance an inverted pendulum "
                "from a scripted mentor's joystick demonstrations, labels and over-strict definition.")
 TARGET_SUCCESS_RATE = 0.95

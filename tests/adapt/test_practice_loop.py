@@ -1,0 +1,74 @@
+"""The practice loop as a whole, fast, on the tutorial's mountain car (Gymnasium's
+MountainCarContinuous-v0 with a scripted mentor and an over-strict switch condition): constant
+failure leads to a repair that then succeeds, every trial is saved as it ends, and a loop stopped
+midway resumes to exactly where an uninterrupted one ends."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+import multiform
+from multiform.adapt.practice import Practice, PracticeConfig
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "mountain_car"
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    import sys
+    sys.path.insert(0, str(EXAMPLE))
+    try:
+        from mountain_car import MountainCar
+    finally:
+        sys.path.remove(str(EXAMPLE))
+    task = MountainCar()
+    out = tmp_path_factory.mktemp("mc")
+    demos = multiform.record(task, out / "demos.h5", demos=6)
+    model = multiform.train(task.SKILL, demos, out / "model", task=task, log=lambda s: None)
+    return task, model.path
+
+
+def _practice(task, model_dir: Path, folder: Path, max_trials: int = 8) -> Practice:
+    sc = task.scenarios()[0]
+    return Practice(multiform.open_model(model_dir), folder, PracticeConfig(max_trials=max_trials, seed=1),
+                    options=sc["options"], name=sc["name"])
+
+
+def test_constant_failure_is_repaired_and_the_repair_then_succeeds(trained, tmp_path):
+    task, model_dir = trained
+    model = tmp_path / "model"
+    shutil.copytree(model_dir, model)
+    state = _practice(task, model, tmp_path / "p").run()
+    outcomes = [t["success"] for t in state.trials]
+    # the mentor's t1 never holds: three failures in a row, then the repair ...
+    assert outcomes[:3] == [False] * 3
+    repair = state.revisions[0]
+    assert (repair["operator"], repair["target"], repair["after_trial"]) == ("set_condition", "t1", 2)
+    # ... after which the robot succeeds on every trial, with the revised net
+    after = state.trials[3:]
+    assert after and all(t["success"] and t["net_version"] == repair["version"] for t in after)
+    assert state.done and "successes in a row" in state.stop_reason
+    # the failed trials are kept for the diagnosis, the state on disk is the state returned
+    assert sorted(p.name for p in (tmp_path / "p" / "traces").iterdir()) == [f"trial_000{k}.npz" for k in range(3)]
+    assert json.loads((tmp_path / "p" / "state.json").read_text())["trials"] == state.trials
+
+
+def test_a_loop_stopped_midway_resumes_to_where_an_uninterrupted_one_ends(trained, tmp_path):
+    task, model_dir = trained
+    ends = []
+    for stop in (None, 2, 4):
+        model = tmp_path / f"model_{stop}"
+        shutil.copytree(model_dir, model)
+        folder = tmp_path / f"p_{stop}"
+        if stop is not None:
+            first = _practice(task, model, folder).run(stop_after=stop)
+            assert len(first.trials) == stop and not first.done
+        state = _practice(task, model, folder).run()
+        history = (model / "skill.history.jsonl").read_text().splitlines()
+        ends.append(([{k: v for k, v in t.items() if k not in ("wall", "time")} for t in state.trials],
+                     [(json.loads(r)["operator"], json.loads(r)["target"], json.loads(r)["version"]) for r in history]))
+    assert ends[0] == ends[1] == ends[2]
