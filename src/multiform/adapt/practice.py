@@ -21,8 +21,8 @@ With ``learn`` (learning from practice, the paper's third form in full) the loop
   ``revert_p``), the net goes back to the version before (a ``revert`` revision). With ``exam``
   the comparison is paired: the ``revert_window`` trials after a revision replay the draws (seed,
   start, push) of the plain trials before it, without exploring, and the revision is reverted if
-  it lost more of those same trials than it won. Paired, ten trials see a drop that two
-  independent windows of ten cannot (a fall from 8/10 to 6/10 is p ≈ 0.3 unpaired);
+  it lost at least ``exam_margin`` more of those same trials than it won. Paired, ten trials see a
+  drop that two independent windows of ten cannot (a fall from 8/10 to 6/10 is p ≈ 0.3 unpaired);
 * stops when its own success rate over the last ``target_window`` plain trials reaches
   ``target_rate``.
 
@@ -96,12 +96,13 @@ class PracticeConfig:
     revert_window: int = 10
     revert_p: float = 0.1
     exam: bool = False
+    exam_margin: int = 2
     novelty: float = 0.0
 
     def __post_init__(self) -> None:
         counts = {"failures_in_a_row": 1, "window": 0, "success_streak": 1, "max_trials": 1, "seed": 0,
                   "explore_every": 0, "refit_every": 1, "refit_min_segments": 1, "mentor_every": 0,
-                  "mentor_budget": 0, "target_window": 1, "revert_window": 1}
+                  "mentor_budget": 0, "target_window": 1, "revert_window": 1, "exam_margin": 1}
         for name, low in counts.items():
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= 1_000_000:
@@ -500,11 +501,12 @@ class Practice:
         self._record(state, rev)
 
     def _paired_verdict(self, state: PracticeState, w: dict[str, Any], after: list[bool]) -> None:
-        """Revert the examined revision if it lost more of the replayed trials than it won."""
+        """Revert the examined revision if it lost ``exam_margin`` more of the replayed trials than it won
+        (one trial's difference is what chaos in a swing-up gives a law that changed at all)."""
         before = w["before"]
         lost = sum(b and not a for b, a in zip(before, after))
         won = sum(a and not b for b, a in zip(before, after))
-        if lost <= won:
+        if lost - won < self.config.exam_margin:
             return
         target = self.model.history.version(w["before_version"])
         _, rev = revert(self.model.apn, w["before_version"], target,
