@@ -104,6 +104,14 @@ def _end_place(apn: APN, tr: Trace) -> str | None:
     return None
 
 
+def _end_tick(apn: APN, tr: Trace) -> int:
+    """The tick the trial's last stay ended: its firing into a final place, else the last tick."""
+    last = tr.firings[-1] if tr.firings else None
+    if last is not None and last.transition in apn.transition_ids and _into_final(apn, last.transition):
+        return last.tick
+    return tr.num_ticks - 1
+
+
 def _stay(tr: Trace, place: str, tick: int) -> float:
     """Seconds the token had been in ``place`` without a break at ``tick`` (repeats count as staying)."""
     if place not in tr.place_ids:
@@ -414,7 +422,7 @@ def _missing_stops(apn: APN, failed: list[Trace], succeeded: list[list[str]], me
                 or any(place in m.inputs and success in m.outputs for m in mentor.missing.values()):
             continue
         held = [tr for tr in failed if _end_place(apn, tr) == place
-                and _stay(tr, place, tr.num_ticks - 1) >= end.shortest_stay]
+                and _stay(tr, place, _end_tick(apn, tr)) >= end.shortest_stay]
         if 2 * len(held) < len(failed):
             continue
         parts = [f"dwell > {end.shortest_stay:.4g}"]
