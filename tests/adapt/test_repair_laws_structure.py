@@ -203,3 +203,28 @@ def test_a_law_change_that_did_not_help_is_reverted_and_the_next_candidate_tried
     assert model.apn.transition("t1").law == "swing_up"                 # back as written
     assert state.tried == earlier + ["wrong_law:t1>balance", "missing_stop:P2"]
 
+
+
+def test_a_tagged_stop_the_net_lacks_is_put_back_timed_by_the_mentors_holds():
+    """A stop ends the trial: the mentor stopped once the place had been held long enough, which a
+    condition learned from states alone cannot see, so the stop the tags name is timed."""
+    from dataclasses import replace
+    eps = []
+    for ep in EPISODES:
+        n = ep.num_samples
+        tags = ep.transitions.copy()
+        tags[n - 10:] = "t6"                                  # the mentor's stop, tagged
+        eps.append(replace(ep, transitions=tags, labels=ep.labels[:-1] + [
+            SegmentLabel(ep.labels[-1].start, n - 10, "t3", True), SegmentLabel(n - 10, n, "t6", True)]))
+    apn = _net(drop=("t6",))
+    mentor = mentor_evidence(apn, eps)
+    assert mentor.missing["t6"].outputs == ("done",) and mentor.endings["P2"].shortest_stay == pytest.approx(1.9)
+    trials = [make_trace(apn, [(0, "t0"), (40, "t1")], vals(400, 0.02), "timeout") for _ in range(3)]
+    d = diagnose(apn, trials, mentor=mentor)
+    (f,) = [f for f in d.findings if f.kind in ("missing_transition", "missing_stop")]
+    assert f.kind == "missing_transition" and f.condition.startswith("dwell > 1.9 and theta > ")
+    fake = FakeLearners(mentor)
+    r = repair(apn, d, fake)
+    assert r.key == "missing_transition:t6" and fake.calls == []          # nothing learned from states
+    t6 = r.apn.transition("t6")
+    assert set(t6.outputs) == {"done"} and t6.law is None and str(t6.condition) == f.condition

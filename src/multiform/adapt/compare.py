@@ -20,7 +20,8 @@ findings, each naming one transition, what is wrong and the evidence:
   the skill explains the mentor's commands in that transition's segments clearly better than the
   law it runs (held-out error, :func:`~.mentor.law_errors`);
 * ``missing_transition`` — the mentor's tags name a maneuver the net has no transition for, and the
-  robot's failed trials ended waiting in the place the mentor took it from;
+  robot's failed trials ended waiting in the place the mentor took it from (a stop into success is
+  timed by the mentor's holds, like ``missing_stop``);
 * ``missing_stop`` — the mentor's successful demonstrations ended in a place from which the net has
   no way to success, and the robot's failed trials ended there after holding it as long as the
   mentor did.
@@ -401,11 +402,17 @@ def _missing_transitions(apn: APN, failed: list[Trace], succeeded: list[list[str
         waited = sum(_end_place(apn, tr) in m.inputs for tr in failed)
         if m.took_success < MIN_USES or 2 * waited < len(failed):
             continue
+        # a stop ends the trial: the mentor stopped when the place had been held long enough, a time
+        # a condition learned from states alone cannot see; it is timed like an untagged stop
+        end = mentor.endings.get(m.inputs[0]) if len(m.inputs) == 1 and \
+            all(apn.place(p).final == "success" for p in m.outputs) else None
         out.append(Finding("missing_transition", m.tag,
                            f"the mentor took {m.tag} from {', '.join(m.inputs)} to {', '.join(m.outputs)} in "
                            f"{m.took_success} successful segment(s), but the net has no {m.tag}; {waited} of "
                            f"{len(failed)} failed trials ended waiting in {', '.join(m.inputs)}",
-                           {**m.to_json(), "failed_waiting": waited, "failed_trials": len(failed)},
+                           {**m.to_json(), "failed_waiting": waited, "failed_trials": len(failed),
+                            **({"mentor_shortest_stay_before_it_s": round(end.shortest_stay, 3)} if end else {})},
+                           condition=end.stop_condition() if end else None,
                            spec={"in": list(m.inputs), "out": list(m.outputs)}))
     return out
 
@@ -413,8 +420,8 @@ def _missing_transitions(apn: APN, failed: list[Trace], succeeded: list[list[str
 def _missing_stops(apn: APN, failed: list[Trace], succeeded: list[list[str]], mentor: MentorEvidence) -> list[Finding]:
     """Places where the mentor's successful demonstrations ended and the net cannot reach success from:
     a stop is put back, firing once the place has been held as long as the mentor's shortest such
-    stay, in the range of the place's judged variables the mentor ended in (widened by that range's
-    width each side)."""
+    stay, in the range of the place's judged variables the mentor ended in
+    (:meth:`~.mentor.Ending.stop_condition`)."""
     out = []
     success = next((p for p, f in apn.final_places.items() if f == "success"), None)
     for place, end in mentor.endings.items():
@@ -425,11 +432,7 @@ def _missing_stops(apn: APN, failed: list[Trace], succeeded: list[list[str]], me
                 and _stay(tr, place, _end_tick(apn, tr)) >= end.shortest_stay]
         if 2 * len(held) < len(failed):
             continue
-        parts = [f"dwell > {end.shortest_stay:.4g}"]
-        for v, (lo, hi) in end.ranges.items():
-            w = max(hi - lo, 1e-3)
-            parts.append(f"{v} > {lo - w:.4g} and {v} < {hi + w:.4g}")
-        text = " and ".join(parts)
+        text = end.stop_condition()
         tid = apn.fresh_id("t")
         out.append(Finding("missing_stop", tid,
                            f"the mentor's {end.episodes} successful demonstrations ending in {place} ended after "

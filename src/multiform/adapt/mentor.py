@@ -78,13 +78,24 @@ class Missing:
 
 @dataclass
 class Ending:
-    """Where the mentor's successful demonstrations ended: the place, how long the mentor had held it
-    (its shortest such stay) and the range of the place's judged variables over their last second."""
+    """Where the mentor's successful demonstrations ended (or stopped): the place, how long the mentor
+    had held it (its shortest such stay) and the range of the place's judged variables over their
+    last second."""
 
     place: str
     episodes: int
     shortest_stay: float
     ranges: dict[str, tuple[float, float]]
+
+    def stop_condition(self) -> str:
+        """A stop where the mentor's demonstrations ended: held as long as the mentor's shortest hold,
+        each judged variable in the range the mentor ended in, widened each side by that range's
+        width (at least a tenth of its magnitude)."""
+        parts = [f"dwell > {self.shortest_stay:.4g}"]
+        for v, (lo, hi) in self.ranges.items():
+            w = max(hi - lo, 0.1 * max(abs(lo), abs(hi)), 1e-3)
+            parts.append(f"{v} > {lo - w:.4g} and {v} < {hi + w:.4g}")
+        return " and ".join(parts)
 
 
 @dataclass
@@ -251,18 +262,22 @@ def _missing(apn: APN, episodes: Sequence[Episode], min_uses: int) -> dict[str, 
 
 
 def _endings(apn: APN, episodes: Sequence[Episode], last: float = 1.0) -> dict[str, Ending]:
-    """Per non-final place in which successful demonstrations ended (their last stay, labelled success,
-    running to the end): how many, the shortest such stay, and the range of the place's judged
-    variables over the last ``last`` s of them."""
+    """Per non-final place in which successful demonstrations ended: their last stay in a non-final
+    place, labelled success, followed by nothing but a stop (a tag into a final place, or one the net
+    lacks). How many, the shortest such stay, and the range of the place's judged variables over
+    the last ``last`` s of them."""
+    known = set(apn.transition_ids)
     found: dict[str, list] = {}
     for ep in episodes:
         if ep.outcome != "success":
             continue
-        placed = stays(apn, ep.transitions)
+        placed = [x for x in stays(apn, ep.transitions) if not apn.place(x[2]).final]
         if not placed:
             continue
         s, e, p = placed[-1]
-        if e != ep.num_samples or apn.place(p).final or not success_mask(ep)[s:e].all():
+        after = set(np.unique(ep.transitions[e:]).tolist())
+        if any(t in known and not any(apn.place(q).final for q in apn.transition(t).outputs) for t in after) \
+                or not success_mask(ep)[s:e].all():
             continue
         names = list(apn.place(p).judge) or list(apn.variables)
         V = value_matrix(apn, ep, names)[max(s, e - int(round(last / ep.dt))):e]

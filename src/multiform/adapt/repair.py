@@ -270,7 +270,7 @@ def set_law_from_mentor(apn: APN, f: Finding) -> Repair:
 def put_back_transition(apn: APN, f: Finding, learners: Learners) -> Repair | None:
     """A transition the mentor's tags name goes back into the net under that name: from and to the
     places of the finding, run by the law with the lowest held-out error on its segments (none into
-    a final place), firing where the mentor switched into it."""
+    a final place), firing where the mentor switched into it (a stop: the finding's timed condition)."""
     spec: dict[str, Any] = {"label": f"{f.transition}, as the mentor took it", "in": f.spec["in"],
                             "out": f.spec["out"], "lambda": 1.0}
     draft, _ = add_transition(apn, f.transition, {**spec, "condition": "false"}, "draft")
@@ -282,13 +282,16 @@ def put_back_transition(apn: APN, f: Finding, learners: Learners) -> Repair | No
             spec["law"] = min(errors, key=errors.get)
             evidence["heldout_nrmse"] = {k: round(v, 4) for k, v in errors.items()}
             draft, _ = add_transition(apn, f.transition, {**spec, "condition": "false"}, "draft")
-    if not learners.has_switches(draft, f.transition):
+    if f.condition is not None:          # a stop, timed by the mentor's holds
+        spec["condition"], learned, how = f.condition, {}, f"when '{f.condition}'"
+    elif learners.has_switches(draft, f.transition):
+        name, learned = learners.switch_condition(draft, f.transition)
+        spec["condition"], how = {"model": name}, "its condition learned from the mentor's switches"
+    else:
         return None
-    name, learned = learners.switch_condition(draft, f.transition)
-    spec["condition"] = {"model": name}
     new, rev = add_transition(apn, f.transition, spec, f.reason + "; put back"
-                              + (f" with law {spec['law']}" if "law" in spec else "")
-                              + ", its condition learned from the mentor's switches", {**evidence, **learned})
+                              + (f" with law {spec['law']}" if "law" in spec else "") + ", " + how,
+                              {**evidence, **learned})
     return Repair(new, [rev], f"added {f.transition}: {', '.join(f.spec['in'])} → {', '.join(f.spec['out'])}")
 
 
