@@ -436,7 +436,8 @@ def _missing_stops(apn: APN, failed: list[Trace], succeeded: list[list[str]], me
         tid = apn.fresh_id("t")
         out.append(Finding("missing_stop", tid,
                            f"the mentor's {end.episodes} successful demonstrations ending in {place} ended after "
-                           f"holding it {end.shortest_stay:.2f} s at least; the net has no way from {place} to success, "
+                           f"holding it {end.shortest_stay:.2f} s at least; the net has no way from {place} to "
+                           f"success, "
                            f"and {len(held)} of {len(failed)} failed trials ended there after holding it as long; "
                            f"a stop {tid} from {place} to {success} when '{text}'",
                            {"mentor_endings": end.episodes, "mentor_shortest_final_stay_s": round(end.shortest_stay, 3),
