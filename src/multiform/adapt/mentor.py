@@ -35,7 +35,7 @@ import numpy as np
 
 from ..demos.episode import Episode
 from ..learn.condition import switch_windows
-from ..learn.views import law_data, stays, success_mask, switch_data, token_place, value_matrix
+from ..learn.views import law_data, stays, success_mask, switch_data, value_matrix
 from ..petri.net import APN
 
 CLOCKS = ("time", "dwell")
