@@ -45,3 +45,38 @@ def test_a_ray_address_where_nothing_listens_is_refused_at_once(tmp_path, capsys
     assert main(["record", "pendulum", "--demos", "1", "--out", str(out), "--ray", address]) == 2
     assert says in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_env_modules_the_caller_allowed_travel_to_spawned_workers(tmp_path, monkeypatch):
+    """A model whose env id imports a module (``module:Env-v0``) runs on a spawned pool's workers
+    with the modules its caller allowed (``--env-module``), trial for trial as in this process;
+    without them every worker refuses it, as this process does."""
+    from pathlib import Path
+
+    from multiform.adapt.evaluation import Variant, evaluate
+    from multiform.demos.dataset import write_dataset
+    from multiform.demos.record import record_many
+    from multiform.job import train_model
+    from multiform.model import SkillModel
+    from multiform.task import load_task
+
+    example = Path(__file__).resolve().parent.parent / "examples" / "mountain_car"
+    monkeypatch.syspath_prepend(str(example))                # spawned workers get this process's sys.path
+    spec = "mountain_car:MountainCar"
+    task = load_task(spec)
+    eps = record_many(task, list(range(4)), task.DEMO_ENV_KWARGS)
+    demos = write_dataset(tmp_path / "d.h5", eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)
+    model = SkillModel.create(tmp_path / "m", task.SKILL, demos, task.ENV_ID)
+    train_model(model, seed=0, log=lambda *a: None)
+    model.update_manifest(env=f"mountain_car:{task.ENV_ID}")  # the env id now imports the module
+    with pytest.raises(InvalidInput, match="--env-module mountain_car"):
+        SkillModel(model.path).verify()
+    specs = task.evaluation_specs(4, 0, 0.0)
+    allowed = Variant("car", str(model.path), env_modules=("mountain_car",))
+    here = evaluate(spec, allowed, specs, workers=1)
+    spawned = evaluate(spec, allowed, specs, workers=2, start_method="spawn")
+    assert [r["trace_digest"] for r in here["trials_detail"]] == [r["trace_digest"] for r in spawned["trials_detail"]]
+    assert spawned["trials"] == 4 and spawned["faults"] == 0
+    assert len({r["trace_digest"] for r in here["trials_detail"]}) == 4          # four different trials
+    with pytest.raises(InvalidInput, match="--env-module mountain_car"):
+        evaluate(spec, Variant("car", str(model.path)), specs, workers=2, start_method="spawn")

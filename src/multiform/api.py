@@ -96,5 +96,6 @@ def evaluate(model: Any, task: TaskLike, trials: int = 200, seed: int = 0, push_
     model = open_model(model) if isinstance(model, (str, os.PathLike)) else model
     task = load_task(task)
     model.verify()
-    variant = Variant(model.apn.name, str(Path(model.path).resolve()), net_version=version)
+    variant = Variant(model.apn.name, str(Path(model.path).resolve()), net_version=version,
+                      env_modules=model.env_modules)
     return run(task, variant, task.evaluation_specs(trials, seed, push_fraction), workers=workers)

@@ -110,13 +110,13 @@ def _same_version(version: str) -> None:
 
 # -- a model directory as bytes ---------------------------------------------------------------------
 
-def pack_model(path: str | os.PathLike, attempts: int = 5) -> dict[str, Any]:
+def pack_model(path: str | os.PathLike, attempts: int = 5, env_modules: Sequence[str] = ()) -> dict[str, Any]:
     """The files of model directory ``path`` that a trial reads, as ``{"digest", "files": {name:
-    bytes}}``. The model is verified first; a file that changes while it is read (a job revising
-    the model meanwhile) is read again."""
+    bytes}}``. The model is verified first (its env id may import ``env_modules``); a file that
+    changes while it is read (a job revising the model meanwhile) is read again."""
     from .model import SkillModel
     root = Path(path)
-    SkillModel(root).verify()
+    SkillModel(root, env_modules=env_modules).verify()
     for _ in range(attempts):
         manifest = (root / "model.json").read_bytes()
         listed = json.loads(manifest)["artifacts"]
@@ -135,9 +135,11 @@ def _digest(files: dict[str, bytes]) -> str:
     return h.hexdigest()
 
 
-def materialise(pack: dict[str, Any], root: str | os.PathLike | None = None) -> Path:
+def materialise(pack: dict[str, Any], root: str | os.PathLike | None = None, env_modules: Sequence[str] = ()
+                ) -> Path:
     """Write a packed model into ``root`` (default: this node's temporary folder) as
-    ``multiform-models/<digest>``, once per node, and verify it; returns the folder."""
+    ``multiform-models/<digest>``, once per node, and verify it (its env id may import
+    ``env_modules``); returns the folder."""
     from .model import SkillModel
     files: dict[str, bytes] = pack["files"]
     if _digest(files) != pack["digest"]:
@@ -158,17 +160,17 @@ def materialise(pack: dict[str, Any], root: str | os.PathLike | None = None) -> 
             os.rename(partial, final)
         except OSError:                   # another worker of this node wrote it first
             shutil.rmtree(partial, ignore_errors=True)
-    SkillModel(final).verify()
+    SkillModel(final, env_modules=env_modules).verify()
     return final
 
 
 _MODELS: dict[str, Path] = {}
 
 
-def _local_model(digest: str, box: list[ray.ObjectRef]) -> Path:
+def _local_model(digest: str, box: list[ray.ObjectRef], env_modules: Sequence[str] = ()) -> Path:
     """This worker's copy of the packed model ``digest`` (fetched from the object store once)."""
     if digest not in _MODELS:
-        _MODELS[digest] = materialise(ray.get(box[0]))
+        _MODELS[digest] = materialise(ray.get(box[0]), env_modules=env_modules)
     return _MODELS[digest]
 
 
@@ -181,7 +183,7 @@ def evaluation_trial(version: str, task: str, env_overrides: dict[str, Any], var
     fetches it."""
     from .adapt import evaluation
     _same_version(version)
-    local = _local_model(digest, box)
+    local = _local_model(digest, box, variant.env_modules)
     evaluation.ensure_worker(task, env_overrides)
     return evaluation._run(replace(variant, model_dir=str(local)), spec)
 
@@ -196,7 +198,7 @@ class RayTrials:
         self._refs: list[ray.ObjectRef] = []
 
     def submit(self, variant: Any, trials: Sequence[Any]) -> list[Future]:
-        pack = pack_model(variant.model_dir)
+        pack = pack_model(variant.model_dir, env_modules=variant.env_modules)
         digest = pack["digest"]
         if digest not in self._packs:
             self._packs[digest] = ray.put(pack)

@@ -467,12 +467,15 @@ class ModelLearners:
 
     def mentor(self, apn: APN) -> Any:
         """What the demonstrations say about ``apn`` (:func:`~multiform.adapt.mentor.mentor_evidence`),
-        computed once per net structure and conditions; None if the model has no demonstrations."""
+        with the fitted laws it runs; computed once per net structure, conditions and laws; None if the
+        model has no demonstrations."""
         from .adapt.mentor import mentor_evidence
-        key = tuple((t.id, tuple(t.inputs), tuple(t.outputs), str(t.condition)) for t in apn.transitions)
+        key = (tuple((t.id, tuple(t.inputs), tuple(t.outputs), str(t.condition), t.law) for t in apn.transitions),
+               tuple((k, v.fit_name) for k, v in sorted(apn.laws.items())))
         if key not in self._mentor:
             try:
                 self._mentor[key] = mentor_evidence(apn, self.model.episodes)
+                self._mentor[key].laws = self.model.laws(apn)     # to judge which law explains a maneuver
             except InvalidInput:
                 self._mentor[key] = None
         return self._mentor[key]

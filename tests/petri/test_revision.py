@@ -128,3 +128,18 @@ def test_replaying_history_rebuilds_every_version(tmp_path_factory, steps):
     for rev in hist.revisions():
         again.append(apply(again[-1], Revision.from_json(rev.to_json())))
     assert again == built
+
+
+def test_set_law_is_recorded_and_replayed(skill_copy):
+    from multiform.petri.revision import set_law
+    apn = load_skill(skill_copy)
+    new, rev = set_law(apn, "t1", "swing_up", "the mentor's t1 segments say so", {"heldout_nrmse": {"swing_up": 0.2}})
+    assert new.transition("t1").law == "swing_up" and apn.transition("t1").law == "balance"
+    assert rev.operator == "set_law" and rev.before == {"law": "balance"} and rev.after == {"law": "swing_up"}
+    h = History(skill_copy)
+    h.record(rev)
+    assert h.latest().transition("t1").law == "swing_up" and h.version(0).transition("t1").law == "balance"
+    with pytest.raises(InvalidInput, match="unknown law 'kick'"):
+        set_law(apn, "t1", "kick", "x")
+    with pytest.raises(InvalidInput, match="unknown transition"):
+        set_law(apn, "t9", "balance", "x")

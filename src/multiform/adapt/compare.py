@@ -15,7 +15,16 @@ findings, each naming one transition, what is wrong and the evidence:
   mentor's own timing or states say were still going well: the robot had stayed in the place for
   less than the mentor's successful stays there, or at a state inside what those stays show;
 * ``stop_too_late`` — a stop rule into success asks the place to hold longer than the mentor's
-  successful stays there ever lasted, and the robot's trials ended in that place without it.
+  successful stays there ever lasted, and the robot's trials ended in that place without it;
+* ``wrong_law`` — the robot's stays after firing a transition ended in failure, and another law of
+  the skill explains the mentor's commands in that transition's segments clearly better than the
+  law it runs (held-out error, :func:`~.mentor.law_errors`);
+* ``missing_transition`` — the mentor's tags name a maneuver the net has no transition for, and the
+  robot's failed trials ended waiting in the place the mentor took it from (a stop into success is
+  timed by the mentor's holds, like ``missing_stop``);
+* ``missing_stop`` — the mentor's successful demonstrations ended in a place from which the net has
+  no way to success, and the robot's failed trials ended there after holding it as long as the
+  mentor did.
 """
 
 from __future__ import annotations
@@ -37,6 +46,8 @@ STARVED = 0.01          # λ below this share of its choice group counts as star
 STRICT = 0.5            # a condition holding at fewer of the mentor's switch moments is too strict
 LOOSE = 0.05            # one holding at more of the mentor's non-switch states is too loose
 SLACK = 1.25            # a limit moved to the mentor's longest successful stay leaves this much room
+LAW_RATIO = 0.7         # another law explains a transition's segments when its error is under this share
+MIN_USES = 3            # the mentor's successful uses needed to judge a transition's law or put one back
 _GT = (operator.gt, operator.ge)
 _LT = (operator.lt, operator.le)
 
@@ -49,12 +60,15 @@ class Finding:
     transition: str
     reason: str
     evidence: dict[str, Any] = field(default_factory=dict)
-    condition: str | None = None      # the moved condition, for limit findings
+    condition: str | None = None      # the moved condition, for limit findings, or a missing stop's
+    law: str | None = None            # the law that explains the mentor's segments, for wrong_law
+    spec: dict[str, Any] | None = None   # the transition to add, for missing_transition and missing_stop
 
     def to_json(self) -> dict[str, Any]:
         out = {"kind": self.kind, "transition": self.transition, "reason": self.reason, "evidence": self.evidence}
-        if self.condition is not None:
-            out["condition"] = self.condition
+        for k in ("condition", "law", "spec"):
+            if getattr(self, k) is not None:
+                out[k] = getattr(self, k)
         return out
 
 
@@ -67,7 +81,8 @@ def compare_with_mentor(apn: APN, traces: Sequence[Trace], mentor: MentorEvidenc
         return []
     succeeded = [tr.fired() for tr in traces if tr.success] + [list(f) for f in succeeded_fired]
     out: list[Finding] = []
-    for rule in (_starved, _dead_branches, _strictness, _limits, _late_stops):
+    for rule in (_starved, _dead_branches, _strictness, _limits, _late_stops, _wrong_laws, _missing_transitions,
+                 _missing_stops):
         out += rule(apn, failed, succeeded, mentor)
     return out
 
@@ -88,6 +103,14 @@ def _end_place(apn: APN, tr: Trace) -> str | None:
         if n > 0 and p in apn.place_ids and not apn.place(p).final:
             return p
     return None
+
+
+def _end_tick(apn: APN, tr: Trace) -> int:
+    """The tick the trial's last stay ended: its firing into a final place, else the last tick."""
+    last = tr.firings[-1] if tr.firings else None
+    if last is not None and last.transition in apn.transition_ids and _into_final(apn, last.transition):
+        return last.tick
+    return tr.num_ticks - 1
 
 
 def _stay(tr: Trace, place: str, tick: int) -> float:
@@ -338,3 +361,100 @@ def _late_stops(apn: APN, failed: list[Trace], succeeded: list[list[str]], mento
                            {"mentor_longest_successful_stay_s": round(mentor_stay, 3), "trials": len(waited),
                             "atoms": changed}, condition=text))
     return out
+
+
+def _wrong_laws(apn: APN, failed: list[Trace], succeeded: list[list[str]], mentor: MentorEvidence) -> list[Finding]:
+    """Transitions after whose firing the robot's stays failed, whose segments in the demonstrations
+    another law explains clearly better than the one they run."""
+    out = []
+    for t in apn.transitions:
+        if not t.law or mentor.took_success.get(t.id, 0) < MIN_USES:
+            continue
+        ended = [tr for tr in failed if t.id in tr.fired() and _end_place(apn, tr) in t.outputs]
+        if 2 * len(ended) < len(failed):
+            continue
+        errors = mentor.law_errors(apn, t.id)
+        own = errors.get(t.law)
+        others = {k: v for k, v in errors.items() if k != t.law}
+        if own is None or not others:
+            continue
+        best = min(others, key=others.get)
+        if others[best] >= LAW_RATIO * own or others[best] >= 1.0:
+            continue
+        out.append(Finding("wrong_law", t.id,
+                           f"{len(ended)} of {len(failed)} failed trials ended in {', '.join(t.outputs)} after {t.id} "
+                           f"fired; the mentor's commands in its {mentor.took_success[t.id]} successful segments are "
+                           f"explained by {best} (held-out NRMSE {others[best]:.2f}) far better than by {t.law}, the "
+                           f"law it runs ({own:.2f})",
+                           {"ended_after_it": len(ended), "failed_trials": len(failed),
+                            "heldout_nrmse": {k: round(v, 4) for k, v in errors.items()},
+                            "mentor_took_successfully": mentor.took_success[t.id]}, law=best))
+    return out
+
+
+def _missing_transitions(apn: APN, failed: list[Trace], succeeded: list[list[str]], mentor: MentorEvidence
+                         ) -> list[Finding]:
+    """Maneuvers the mentor's tags name that the net lacks, where the robot's failed trials waited."""
+    out = []
+    for m in mentor.missing.values():
+        if m.tag in apn.transition_ids or m.tag in apn.place_ids or not set(m.inputs + m.outputs) <= set(apn.place_ids):
+            continue
+        waited = sum(_end_place(apn, tr) in m.inputs for tr in failed)
+        if m.took_success < MIN_USES or 2 * waited < len(failed):
+            continue
+        # a stop ends the trial: the mentor stopped when the place had been held long enough, a time
+        # a condition learned from states alone cannot see; it is timed like an untagged stop
+        end = mentor.endings.get(m.inputs[0]) if len(m.inputs) == 1 and \
+            all(apn.place(p).final == "success" for p in m.outputs) else None
+        out.append(Finding("missing_transition", m.tag,
+                           f"the mentor took {m.tag} from {', '.join(m.inputs)} to {', '.join(m.outputs)} in "
+                           f"{m.took_success} successful segment(s), but the net has no {m.tag}; {waited} of "
+                           f"{len(failed)} failed trials ended waiting in {', '.join(m.inputs)}",
+                           {**m.to_json(), "failed_waiting": waited, "failed_trials": len(failed),
+                            **({"mentor_shortest_stay_before_it_s": round(end.shortest_stay, 3)} if end else {})},
+                           condition=end.stop_condition() if end else None,
+                           spec={"in": list(m.inputs), "out": list(m.outputs)}))
+    return out
+
+
+def _missing_stops(apn: APN, failed: list[Trace], succeeded: list[list[str]], mentor: MentorEvidence) -> list[Finding]:
+    """Places where the mentor's successful demonstrations ended and the net cannot reach success from:
+    a stop is put back, firing once the place has been held as long as the mentor's shortest such
+    stay, in the range of the place's judged variables the mentor ended in
+    (:meth:`~.mentor.Ending.stop_condition`)."""
+    out = []
+    success = next((p for p, f in apn.final_places.items() if f == "success"), None)
+    for place, end in mentor.endings.items():
+        if success is None or place not in apn.place_ids or end.episodes < MIN_USES or _reaches_success(apn, place) \
+                or any(place in m.inputs and success in m.outputs for m in mentor.missing.values()):
+            continue
+        held = [tr for tr in failed if _end_place(apn, tr) == place
+                and _stay(tr, place, _end_tick(apn, tr)) >= end.shortest_stay]
+        if 2 * len(held) < len(failed):
+            continue
+        text = end.stop_condition()
+        tid = apn.fresh_id("t")
+        out.append(Finding("missing_stop", tid,
+                           f"the mentor's {end.episodes} successful demonstrations ending in {place} ended after "
+                           f"holding it {end.shortest_stay:.2f} s at least; the net has no way from {place} to "
+                           f"success, "
+                           f"and {len(held)} of {len(failed)} failed trials ended there after holding it as long; "
+                           f"a stop {tid} from {place} to {success} when '{text}'",
+                           {"mentor_endings": end.episodes, "mentor_shortest_final_stay_s": round(end.shortest_stay, 3),
+                            "mentor_final_ranges": {k: [round(a, 4), round(b, 4)] for k, (a, b) in end.ranges.items()},
+                            "failed_ending_there": len(held), "failed_trials": len(failed)},
+                           condition=text, spec={"in": [place], "out": [success]}))
+    return out
+
+
+def _reaches_success(apn: APN, place: str) -> bool:
+    """Structurally, a success place is reachable from a token in ``place``."""
+    reach = {place}
+    changed = True
+    while changed:
+        changed = False
+        for t in apn.transitions:
+            if t.inputs and set(t.inputs) <= reach and not set(t.outputs) <= reach:
+                reach |= set(t.outputs)
+                changed = True
+    return any(apn.place(p).final == "success" for p in reach)

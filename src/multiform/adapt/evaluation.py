@@ -3,7 +3,9 @@ with Wilson intervals.
 
 A trial is described by plain data (:class:`TrialSpec`) so it crosses process boundaries; each
 worker opens the model directory itself (a local pool's worker reads it from disk, a Ray worker gets
-its bytes through the object store, see :mod:`multiform.cluster`). Success is the task's physical
+its bytes through the object store, see :mod:`multiform.cluster`), allowing the same env modules
+the caller allowed (:attr:`Variant.env_modules`, the command line's ``--env-module``): a forked,
+spawned or Ray worker never allows more, nor less. Success is the task's physical
 check on the trace (the same check for every variant, so a baseline without a net is judged like
 the full skill); the robot's own verdict (net outcome + judges) is kept beside it.
 """
@@ -31,7 +33,8 @@ class TrialSpec:
 
 @dataclass(frozen=True)
 class Variant:
-    """What runs: a model directory, which net version (None = latest), inverse model or not."""
+    """What runs: a model directory, which net version (None = latest), inverse model or not, and
+    the modules its env id may import (``module:Env-v0``; see :class:`~multiform.model.SkillModel`)."""
 
     name: str
     model_dir: str
@@ -39,6 +42,7 @@ class Variant:
     use_inverse_model: bool = True
     use_judges: bool = True
     notes: str = ""
+    env_modules: tuple[str, ...] = ()
 
 
 _WORKER: dict[str, Any] = {}
@@ -71,7 +75,7 @@ def _variant(variant: Variant) -> dict[str, Any]:
     got = _WORKER["variants"].get(variant)
     if got is None:
         from ..model import SkillModel
-        model = SkillModel(variant.model_dir)
+        model = SkillModel(variant.model_dir, env_modules=variant.env_modules)
         apn = model.history.version(variant.net_version) if variant.net_version is not None else model.apn
         env = model.make_env(**_WORKER["env_overrides"])
         got = _WORKER["variants"][variant] = {

@@ -1,7 +1,7 @@
 """The repair operators, offered as candidates in the order that changes the mentor's definition least.
 
 On a diagnosis of constant failure, :func:`candidates` lists every repair the findings support, λ
-first, then conditions, then limits, then structure; the practice loop tries them one at a time,
+first, then conditions, then limits, then laws, then structure; the practice loop tries them one at a time,
 reverting one that does not help and taking the next (:func:`repair` makes the first that applies).
 
 From the comparison with the mentor (:mod:`.compare`):
@@ -11,7 +11,14 @@ From the comparison with the mentor (:mod:`.compare`):
 * **condition relearned** from the mentor's switches when the written one is too strict or too
   loose for where the mentor switched;
 * **limit moved** to what the demonstrations show, for a give-up rule that ended trials the
-  mentor's timing says were going well, or a stop rule asking for more than the mentor ever held.
+  mentor's timing says were going well, or a stop rule asking for more than the mentor ever held;
+* **law set** to the skill's law that explains the mentor's segments of a transition, when the
+  one it runs does not and the robot's stays after it fail;
+* **transition put back** that the mentor's tags name and the net lacks: from where the mentor's
+  token was before to where it was after, run by the law that explains its segments, firing where
+  the mentor switched into it (condition learned from those switches);
+* **stop put back** where the mentor's successful demonstrations ended and the net has no way to
+  success: after the mentor's shortest hold there, in the range the mentor ended in.
 
 The paper's operators:
 
@@ -39,7 +46,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from ..petri.net import APN
-from ..petri.revision import Revision, add_place, add_transition, set_condition, set_lambda
+from ..petri.revision import Revision, add_place, add_transition, set_condition, set_lambda, set_law
 from .compare import STRICT, Finding
 from .diagnosis import Diagnosis
 from .mentor import MentorEvidence
@@ -253,16 +260,60 @@ def move_limit(apn: APN, f: Finding) -> Repair:
     return Repair(new, [rev], f"C({f.transition}) ← {f.condition}")
 
 
+def set_law_from_mentor(apn: APN, f: Finding) -> Repair:
+    """A transition runs the law that explains the mentor's segments of it (the finding names it)."""
+    old = apn.transition(f.transition).law
+    new, rev = set_law(apn, f.transition, f.law, f.reason + f"; {f.transition} now runs {f.law}", f.evidence)
+    return Repair(new, [rev], f"law({f.transition}) {old} → {f.law}")
+
+
+def put_back_transition(apn: APN, f: Finding, learners: Learners) -> Repair | None:
+    """A transition the mentor's tags name goes back into the net under that name: from and to the
+    places of the finding, run by the law with the lowest held-out error on its segments (none into
+    a final place), firing where the mentor switched into it (a stop: the finding's timed condition)."""
+    spec: dict[str, Any] = {"label": f"{f.transition}, as the mentor took it", "in": f.spec["in"],
+                            "out": f.spec["out"], "lambda": 1.0}
+    draft, _ = add_transition(apn, f.transition, {**spec, "condition": "false"}, "draft")
+    evidence = dict(f.evidence)
+    mentor = learners.mentor(apn)
+    if mentor is not None and not any(apn.place(p).final for p in f.spec["out"]):
+        errors = mentor.law_errors(draft, f.transition)
+        if errors:
+            spec["law"] = min(errors, key=errors.get)
+            evidence["heldout_nrmse"] = {k: round(v, 4) for k, v in errors.items()}
+            draft, _ = add_transition(apn, f.transition, {**spec, "condition": "false"}, "draft")
+    if f.condition is not None:          # a stop, timed by the mentor's holds
+        spec["condition"], learned, how = f.condition, {}, f"when '{f.condition}'"
+    elif learners.has_switches(draft, f.transition):
+        name, learned = learners.switch_condition(draft, f.transition)
+        spec["condition"], how = {"model": name}, "its condition learned from the mentor's switches"
+    else:
+        return None
+    new, rev = add_transition(apn, f.transition, spec, f.reason + "; put back"
+                              + (f" with law {spec['law']}" if "law" in spec else "") + ", " + how,
+                              {**evidence, **learned})
+    return Repair(new, [rev], f"added {f.transition}: {', '.join(f.spec['in'])} → {', '.join(f.spec['out'])}")
+
+
+def put_back_stop(apn: APN, f: Finding) -> Repair:
+    """A stop into success where the mentor's successful demonstrations ended (the finding holds its
+    places and condition)."""
+    spec = {"label": "stop, as the mentor's demonstrations ended", "in": f.spec["in"], "out": f.spec["out"],
+            "lambda": 1.0, "condition": f.condition}
+    new, rev = add_transition(apn, f.transition, spec, f.reason, f.evidence)
+    return Repair(new, [rev], f"added stop {f.transition}: {', '.join(f.spec['in'])} → {', '.join(f.spec['out'])}")
+
+
 @dataclass
 class Candidate:
     """One repair the diagnosis supports, built only when tried."""
 
     key: str
-    stage: str                      # lambda | condition | limit | structure
+    stage: str                      # lambda | condition | limit | law | structure
     build: Callable[[], Repair | None]
 
 
-STAGES = ("lambda", "condition", "limit", "structure")
+STAGES = ("lambda", "condition", "limit", "law", "structure")
 
 
 def candidates(apn: APN, d: Diagnosis, learners: Learners, exhausted: frozenset[str] = frozenset()
@@ -294,6 +345,12 @@ def candidates(apn: APN, d: Diagnosis, learners: Learners, exhausted: frozenset[
     for kind in ("limit_too_tight", "stop_too_late"):
         for f in by_kind.get(kind, []):
             add(f"{kind}:{f.transition}", "limit", lambda f=f: move_limit(apn, f))
+    for f in by_kind.get("wrong_law", []):
+        add(f"wrong_law:{f.transition}>{f.law}", "law", lambda f=f: set_law_from_mentor(apn, f))
+    for f in by_kind.get("missing_transition", []):
+        add(f"missing_transition:{f.transition}", "structure", lambda f=f: put_back_transition(apn, f, learners))
+    for f in by_kind.get("missing_stop", []):
+        add(f"missing_stop:{','.join(f.spec['in'])}", "structure", lambda f=f: put_back_stop(apn, f))
     pairs = sorted({(e.place, e.best) for e in d.exits if e.best is not None})
     if pairs:
         add("back:" + ",".join(f"{a}>{b}" for a, b in pairs), "structure", lambda: add_transition_back(apn, d, learners))

@@ -1,7 +1,9 @@
 """Revisions: the ways the robot changes its net, each recorded with its reason and evidence.
 
 The paper's four operators change the net's structure, Λ and C (set λ, set a condition, add a
-transition, add a place); two more come from learning by practice: **refit a law** (the law runs
+transition, add a place); **set a law** gives a transition another of the skill's laws (when the
+mentor's demonstrations of that maneuver are better explained by it); two more come from learning
+by practice: **refit a law** (the law runs
 a new fit, learned from the mentor's demonstrations and the robot's own graded experience) and
 **revert** (back to an earlier version, when a revision made the robot's own success rate clearly
 worse).
@@ -27,7 +29,7 @@ from ..io import append_jsonl, read_jsonl
 from .net import APN
 from .skillfile import IDENT, load_skill, parse_condition, parse_places, parse_transitions, skill_from_data, skill_to_data
 
-OPERATORS = ("set_lambda", "set_condition", "add_transition", "add_place", "refit_law", "revert")
+OPERATORS = ("set_lambda", "set_condition", "set_law", "add_transition", "add_place", "refit_law", "revert")
 
 
 @dataclass(frozen=True)
@@ -123,6 +125,22 @@ def set_condition(apn: APN, transition: str, condition: str | Mapping[str, str],
     return out, rev
 
 
+def set_law(apn: APN, transition: str, law: str, reason: str, evidence: Mapping[str, Any] | None = None,
+            version: int | None = None) -> tuple[APN, Revision]:
+    """Run ``law`` (one of the skill's laws) while ``transition``'s maneuver is active."""
+    if transition not in apn.transition_ids:
+        raise InvalidInput(f"unknown transition {transition!r}", element="set_law")
+    if law not in apn.laws:
+        raise InvalidInput(f"unknown law {law!r}; the skill's laws are {', '.join(sorted(apn.laws))}",
+                           element=f"transitions.{transition}.law")
+    t = apn.transition(transition)
+    out = apn.with_transition(replace(t, law=law))
+    rev = Revision(version=_next_version(apn, version), operator="set_law", target=transition, reason=reason,
+                   params={"transition": transition, "law": law}, before={"law": t.law}, after={"law": law},
+                   evidence=dict(evidence or {}), time=_now())
+    return out, rev
+
+
 def add_transition(apn: APN, transition: str, spec: Mapping[str, Any], reason: str,
                    evidence: Mapping[str, Any] | None = None) -> tuple[APN, Revision]:
     """Add a new transition described like in a skill file (``in``, ``out``, ``law``, ...)."""
@@ -196,6 +214,8 @@ def apply(apn: APN, rev: Revision) -> APN:
             out, _ = set_lambda(apn, p["transition"], p["lambda"], rev.reason)
         elif rev.operator == "set_condition":
             out, _ = set_condition(apn, p["transition"], p["condition"], rev.reason)
+        elif rev.operator == "set_law":
+            out, _ = set_law(apn, p["transition"], p["law"], rev.reason)
         elif rev.operator == "add_transition":
             out, _ = add_transition(apn, p["transition"], p["spec"], rev.reason)
         elif rev.operator == "add_place":
