@@ -80,3 +80,10 @@ def test_env_modules_the_caller_allowed_travel_to_spawned_workers(tmp_path, monk
     assert len({r["trace_digest"] for r in here["trials_detail"]}) == 4          # four different trials
     with pytest.raises(InvalidInput, match="--env-module mountain_car"):
         evaluate(spec, Variant("car", str(model.path)), specs, workers=2, start_method="spawn")
+    # the command line passes its --env-module on to the workers
+    from multiform.cli import main
+    assert main(["evaluate", str(model.path), "--task", spec, "--trials", "4", "--push-fraction", "0", "--workers", "2",
+                 "--env-module", "mountain_car", "--out", str(tmp_path / "ev")]) == 0
+    import json
+    ev = json.loads((tmp_path / "ev" / "evaluation.json").read_text())
+    assert [r["trace_digest"] for r in ev["trials_detail"]] == [r["trace_digest"] for r in here["trials_detail"]]

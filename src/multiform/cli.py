@@ -421,7 +421,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         check_writable(out if Path(args.out).is_dir() else Path(args.out))   # the folder is made at the end
     specs = task.evaluation_specs(args.trials, args.seed, args.push_fraction)
     variant = Variant(f"{model.apn.name} v{model.version if args.version is None else args.version}",
-                      str(Path(args.model).resolve()), net_version=args.version)
+                      str(Path(args.model).resolve()), net_version=args.version, env_modules=tuple(args.env_module))
     with _bar(len(specs), f"evaluating {name}") as bar:
         res = evaluate(task.spec or task, variant, specs, workers=args.workers, progress=lambda i, n: bar.update(1),
                        ray=args.ray)

@@ -371,8 +371,3 @@ def repair(apn: APN, d: Diagnosis, learners: Learners, exhausted: frozenset[str]
             r.key = c.key
             return r
     return None
-
-
-def describe(revs: Sequence[Revision]) -> list[dict[str, Any]]:
-    """Revisions as the run's metrics list them: operator, target, reason."""
-    return [{"version": r.version, "operator": r.operator, "target": r.target, "reason": r.reason} for r in revs]

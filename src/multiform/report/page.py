@@ -56,6 +56,7 @@ WORDS = {   # how the page names the keys of metrics.json
     "set_condition": "new condition", "add_transition": "new transition", "add_place": "new place",
     "set_lambda": "new firing probabilities", "lower_lambda": "lower firing probability",
     "refit_law": "law refitted", "revise_judge": "judge revised", "revert": "revision reverted",
+    "set_law": "law changed",
 }
 
 
