@@ -328,7 +328,7 @@ def law_errors(apn: APN, episodes: Sequence[Episode], transition: str, laws: Map
         y_ratio = np.max(fitted.y_scale_ / ys)
         theta = np.r_[np.log(fitted.length_scale_ * fitted.x_scale_ / xs), np.log(fitted.sigma_f_ * y_ratio),
                       np.log(fitted.noise_ * y_ratio)]
-        probe = clone(fitted).set_params(sparse_threshold=None, exact_var_max_n=None, ard=True).fit(X, Y, theta=theta)
+        probe = clone(fitted).set_params(sparse_threshold=None, exact_var_max_n=None, ard=True, theta=theta).fit(X, Y)
         rows = np.sort(rng.choice(len(target.X), min(2 * max_samples, len(target.X)), replace=False))
         pred = probe.predict(target.X[rows]).reshape(len(rows), -1)
         Yt = target.Y[rows].reshape(len(rows), -1)

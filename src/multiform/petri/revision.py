@@ -125,8 +125,8 @@ def set_condition(apn: APN, transition: str, condition: str | Mapping[str, str],
     return out, rev
 
 
-def set_law(apn: APN, transition: str, law: str, reason: str, evidence: Mapping[str, Any] | None = None,
-            version: int | None = None) -> tuple[APN, Revision]:
+def set_law(apn: APN, transition: str, law: str, reason: str, evidence: Mapping[str, Any] | None = None
+            ) -> tuple[APN, Revision]:
     """Run ``law`` (one of the skill's laws) while ``transition``'s maneuver is active."""
     if transition not in apn.transition_ids:
         raise InvalidInput(f"unknown transition {transition!r}", element="set_law")
@@ -135,7 +135,7 @@ def set_law(apn: APN, transition: str, law: str, reason: str, evidence: Mapping[
                            element=f"transitions.{transition}.law")
     t = apn.transition(transition)
     out = apn.with_transition(replace(t, law=law))
-    rev = Revision(version=_next_version(apn, version), operator="set_law", target=transition, reason=reason,
+    rev = Revision(version=0, operator="set_law", target=transition, reason=reason,
                    params={"transition": transition, "law": law}, before={"law": t.law}, after={"law": law},
                    evidence=dict(evidence or {}), time=_now())
     return out, rev
