@@ -18,6 +18,8 @@ Built in O(n m²) time and O(m · chunk) memory (the n points are streamed in ch
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from scipy.linalg import cho_solve, solve_triangular
 
@@ -59,10 +61,13 @@ def select_inducing(Z: np.ndarray, m: int, seed: int) -> np.ndarray:
     if m >= n:
         return Z.copy()
     from sklearn.cluster import KMeans
+    from sklearn.exceptions import ConvergenceWarning
 
     rng = np.random.default_rng(seed)
     sample = Z if n <= _KMEANS_SAMPLE else Z[rng.choice(n, _KMEANS_SAMPLE, replace=False)]
-    km = KMeans(n_clusters=m, n_init=1, max_iter=100, random_state=seed).fit(sample)
+    with warnings.catch_warnings():     # fewer distinct points than centres: handled just below
+        warnings.filterwarnings("ignore", message="Number of distinct clusters", category=ConvergenceWarning)
+        km = KMeans(n_clusters=m, n_init=1, max_iter=100, random_state=seed).fit(sample)
     centres = km.cluster_centers_
     uniq = np.unique(np.round(centres, 12), axis=0)
     if uniq.shape[0] < m:        # duplicated data: fall back to distinct training points
