@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from ..petri.analysis import success_reachable
 from ..petri.guard import parse_guard, to_text
 from ..petri.net import APN
 from ..runtime.trace import Trace
@@ -425,7 +426,7 @@ def _missing_stops(apn: APN, failed: list[Trace], succeeded: list[list[str]], me
     out = []
     success = next((p for p, f in apn.final_places.items() if f == "success"), None)
     for place, end in mentor.endings.items():
-        if success is None or place not in apn.place_ids or end.episodes < MIN_USES or _reaches_success(apn, place) \
+        if success is None or place not in apn.place_ids or end.episodes < MIN_USES or success_reachable(apn, [place]) \
                 or any(place in m.inputs and success in m.outputs for m in mentor.missing.values()):
             continue
         held = [tr for tr in failed if _end_place(apn, tr) == place
@@ -446,15 +447,3 @@ def _missing_stops(apn: APN, failed: list[Trace], succeeded: list[list[str]], me
                            condition=text, spec={"in": [place], "out": [success]}))
     return out
 
-
-def _reaches_success(apn: APN, place: str) -> bool:
-    """Structurally, a success place is reachable from a token in ``place``."""
-    reach = {place}
-    changed = True
-    while changed:
-        changed = False
-        for t in apn.transitions:
-            if t.inputs and set(t.inputs) <= reach and not set(t.outputs) <= reach:
-                reach |= set(t.outputs)
-                changed = True
-    return any(apn.place(p).final == "success" for p in reach)

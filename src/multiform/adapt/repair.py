@@ -45,6 +45,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from ..petri.analysis import success_reachable
 from ..petri.net import APN
 from ..petri.revision import Revision, add_place, add_transition, set_condition, set_lambda, set_law
 from .compare import STRICT, Finding
@@ -88,19 +89,6 @@ def _only_way(apn: APN, tid: str) -> bool:
                    for o in apn.transitions)
 
 
-def _leads_to_success(apn: APN, tid: str) -> bool:
-    """Structurally, a success place is reachable from ``tid``'s outputs."""
-    reach = set(apn.transition(tid).outputs)
-    changed = True
-    while changed:
-        changed = False
-        for t in apn.transitions:
-            if t.inputs and set(t.inputs) <= reach and not set(t.outputs) <= reach:
-                reach |= set(t.outputs)
-                changed = True
-    return any(apn.place(p).final == "success" for p in reach)
-
-
 def place_law(apn: APN, place: str) -> str | None:
     """The law that runs while ``place`` holds the token: the commonest law of transitions into it."""
     laws = Counter(t.law for t in apn.transitions if place in t.outputs and t.law and place not in t.inputs)
@@ -141,7 +129,7 @@ def relearn_condition(apn: APN, d: Diagnosis, learners: Learners, only: str | No
         if not any(p in d.never_visited or apn.place(p).final == "success" for p in t.outputs) \
                 or set(t.outputs) <= set(t.inputs):
             continue
-        if not _leads_to_success(apn, tid) or not _only_way(apn, tid):
+        if not success_reachable(apn, apn.transition(tid).outputs) or not _only_way(apn, tid):
             continue
         if not learners.has_switches(apn, tid):
             continue

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from .net import APN
@@ -145,3 +146,17 @@ def report(apn: APN, result: Analysis) -> list[str]:
         shown = ", ".join(format_marking(apn, m) for m in result.deadlocks[:5])
         lines.append(f"deadlocks (non-final markings with nothing enabled): {shown}")
     return lines
+
+
+def success_reachable(apn: APN, places: Iterable[str]) -> bool:
+    """Structurally (ignoring conditions and token counts), a success place is reachable from tokens
+    in ``places``: the closure under every transition whose inputs all lie in it."""
+    reach = set(places)
+    changed = True
+    while changed:
+        changed = False
+        for t in apn.transitions:
+            if t.inputs and set(t.inputs) <= reach and not set(t.outputs) <= reach:
+                reach |= set(t.outputs)
+                changed = True
+    return any(apn.place(p).final == "success" for p in reach)
