@@ -78,9 +78,10 @@ def replay_demo(path: str | os.PathLike, index: int = 0, every: int = 33) -> Rep
     n = min(len(obs), ep.num_samples)
     # the replayed states rounded as the file stores them (float32 by default) match it to the last bit
     stored = np.asarray(obs[:n], dtype=ds.meta.get("obs_dtype", "float64")).astype(np.float64)
-    err = float(np.max(np.abs(stored - ep.obs[:n]))) if n else 0.0
+    diff = np.abs(stored - ep.obs[:n])
+    err = float(diff.max()) if n else 0.0
     if n != ep.num_samples or not err <= TOLERANCE:
-        bad = int(np.argmax(np.any(np.abs(stored - ep.obs[:n]) > TOLERANCE, axis=1))) if n else 0
+        bad = int(np.argmax(np.any(diff > TOLERANCE, axis=1))) if n else 0
         env.close()
         raise InvalidInput(f"demo {index} does not replay as recorded: the states part at sample {bad} of "
                            f"{ep.num_samples} (largest difference {err:.3g})", file=str(path), element=f"demo_{index}")
