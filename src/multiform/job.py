@@ -189,6 +189,21 @@ class Job:
             queued.append((variant, ev.submit(variant, sub, lambda bar=bar: bar.update(1)), bar))
         return queued
 
+    def _repair_only(self, model: SkillModel, ev: Evaluator) -> list[tuple[Variant, list, tqdm]]:
+        """With learning from practice: the skill as the repair scenarios left it (the net and laws
+        before learning; the same model directory at that net version), on the ablation trials."""
+        learning = {sc["name"] for sc in self.task.scenarios() if sc.get("learn")}
+        first = next((r.version for r in model.history.revisions() if r.evidence.get("scenario") in learning), None)
+        sub = self._specs()[: self.cfg.ablation_trials]
+        if not self.cfg.learn or first is None or not sub:
+            return []
+        v = first - 1
+        variant = Variant("practice repairs the net only (no learning from practice)", str(model.path), net_version=v,
+                          use_inverse_model=self.cfg.inverse_model,
+                          notes=f"net version {v} and its laws: no refit from its own experience")
+        bar = self._bar(len(sub), "ablation: practice repairs only", position=1)
+        return [(variant, ev.submit(variant, sub, lambda: bar.update(1)), bar)]
+
     def evaluate(self, model: SkillModel, ev: Evaluator, queued: list[tuple[Variant, list, tqdm]] | None = None
                  ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
         """The final skill on the evaluation trials, then the ablations (queued now unless
@@ -202,7 +217,8 @@ class Job:
         self.log(f"  final success rate {100 * main['rate']:.1f} % ({main['successes']}/{main['trials']}, "
                  f"95 % CI {100 * main['low']:.1f}-{100 * main['high']:.1f} %)")
         rows = [main]
-        for variant, futures, bar in queued if queued is not None else self.baselines(model, ev):
+        queued = list(queued if queued is not None else self.baselines(model, ev)) + self._repair_only(model, ev)
+        for variant, futures, bar in queued:
             r = ev.collect(variant, futures)
             bar.close()
             rows.append(r)

@@ -1,0 +1,76 @@
+"""With learning from practice, the job evaluates the skill as the repair scenarios left it beside
+the final one (the report's "practice repairs the net only" row), at the net version just before
+learning's first revision; without learning, or when learning revised nothing, no such row."""
+
+from __future__ import annotations
+
+import shutil
+import sys
+from pathlib import Path
+
+import pytest
+
+import multiform
+from multiform.job import Job, JobConfig
+from multiform.petri.revision import set_lambda
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "mountain_car"
+
+
+@pytest.fixture(scope="module")
+def car(tmp_path_factory):
+    sys.path.insert(0, str(EXAMPLE))
+    try:
+        from mountain_car import MountainCar
+    finally:
+        sys.path.remove(str(EXAMPLE))
+
+    class Learning(MountainCar):
+        def scenarios(self):
+            return [*super().scenarios(), {"name": "keep", "title": "keep practising", "learn": True,
+                                          "options": self.trial_options, "config": {"learn": True}}]
+
+    task = Learning()
+    out = tmp_path_factory.mktemp("car")
+    demos = multiform.record(task, out / "demos.h5", demos=6)
+    model = multiform.train(task.SKILL, demos, out / "model", task=task, log=lambda s: None)
+    return task, model.path
+
+
+class Queue:
+    """An evaluator that only notes what was submitted."""
+
+    def __init__(self):
+        self.submitted = []
+
+    def submit(self, variant, specs, done=None):
+        self.submitted.append((variant, len(specs)))
+        return []
+
+
+def _revise(model, scenario: str) -> int:
+    t = model.apn.transition_ids[0]
+    _, rev = set_lambda(model.apn, t, 1.0, "test", {"scenario": scenario})
+    return model.history.record(rev).version
+
+
+@pytest.mark.parametrize("learn", [True, False])
+def test_the_repair_only_skill_is_evaluated_beside_the_learned_one(car, tmp_path, learn):
+    task, model_dir = car
+    shutil.copytree(model_dir, tmp_path / "model")
+    model = multiform.open_model(tmp_path / "model")
+    job = Job(task, tmp_path / "run", JobConfig(learn=learn, ablation_trials=7), log=lambda *a: None, progress=False)
+    repaired = _revise(model, "practice")
+    ev = Queue()
+    assert job._repair_only(model, ev) == []          # learning has revised nothing yet: the same skill
+    _revise(model, "keep")
+    _revise(model, "keep")
+    rows = job._repair_only(model, ev)
+    if not learn:
+        assert rows == [] and ev.submitted == []
+        return
+    (variant, _, bar), = rows
+    bar.close()
+    assert variant.net_version == repaired and variant.model_dir == str(model.path)
+    assert "repairs the net only" in variant.name
+    assert ev.submitted == [(variant, 7)]
