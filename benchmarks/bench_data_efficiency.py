@@ -53,10 +53,11 @@ def pipeline(task: str, out: Path, demos: int, seed: int, learn: bool, trials: i
         Job(task, out, cfg, log=lambda *a: None, progress=False).run()
     m = read_json(metrics, "metrics")
     learned = [s for s in m["scenarios"].values() if "mentor_labelled_trials" in s]
+    pushed = m.get("pushed") or {"successes": 0, "trials": 0}      # None: the task pushes nothing
     return {"demos": demos, "seed": seed, "variant": VARIANTS[learn], **m["success_rate"],
-            "pushed": [m["pushed"]["successes"], m["pushed"]["trials"]],
-            "unpushed": [m["success_rate"]["successes"] - m["pushed"]["successes"],
-                         m["success_rate"]["trials"] - m["pushed"]["trials"]],
+            "pushed": [pushed["successes"], pushed["trials"]],
+            "unpushed": [m["success_rate"]["successes"] - pushed["successes"],
+                         m["success_rate"]["trials"] - pushed["trials"]],
             "practice_trials": m["practice_trials"], "robot_seconds": m.get("practice_robot_seconds"),
             "mentor_labelled_trials": m.get("mentor_labelled_trials", 0),
             "own_segments": sum(s.get("own_segments", 0) for s in learned),

@@ -70,3 +70,43 @@ def test_noise_free_mentor_is_repeatable_and_parameters_are_committed():
     m = NunchakuMentor(noise=0.0, failure_rate=0.0)
     m.reset(np.zeros(15), np.random.default_rng(0))
     assert m.p == p and m.reaction == 0.0 and m.fumble == ""
+
+
+def test_the_mentor_grades_a_robot_trial_from_what_it_shows():
+    """The trial seen by place: the magnet's grip and the touch on the back of the hand, nothing of the
+    simulator. A flip (let go, chain over the back, a rod caught and held 0.5 s) passes every stay; a
+    catch that did not last, or a release without the chain rolling over, fails the later stays."""
+    from multiform.demos.episode import Episode
+    dt, n = 0.01, 300
+    grip = np.ones(n)
+    grip[100:180] = 0.0                                 # let go at 1 s, caught at 1.8 s, held 1.2 s
+    touch = np.zeros(n)
+    touch[130:150] = 2.0                                # the chain on the back of the hand
+    tags = np.array(["P1"] * 100 + ["P2"] * 85 + ["P3"] * 60 + ["done"] * 55)
+
+    def grade(grip, touch):
+        ep = Episode(obs=np.stack([grip, touch], axis=1), actions=np.zeros((n, 1)), transitions=tags,
+                     observation_names=("grip", "touch"), command_names=("vx",), dt=dt, seed=0)
+        return [(lab.transition, lab.success) for lab in NunchakuMentor().grade_trial(ep)]
+
+    assert grade(grip, touch) == [("P1", True), ("P2", True), ("P3", True)]
+    short = grip.copy()
+    short[220:] = 0.0                                   # the catch held 0.4 s, then the rod fell out
+    assert grade(short, touch) == [("P1", True), ("P2", False), ("P3", False)]
+    assert grade(grip, np.zeros(n)) == [("P1", False), ("P2", False), ("P3", False)]
+
+
+def test_the_grade_from_the_trace_matches_the_flip_the_experimenter_saw(env):
+    """On recorded flips, fumbles included, the trace-only grade of the last stay says what the
+    mentor who did the flip saw (it knew which rod ended in its palm)."""
+    from multiform.learn.views import place_episode
+    apn = load_skill("nunchaku")
+    mentor = NunchakuMentor(failure_rate=0.6)
+    grader = NunchakuMentor()
+    seen = set()
+    for s in range(30, 36):
+        ep = record_episode(env, mentor, seed=s)
+        last = grader.grade_trial(place_episode(apn, ep))[-1]
+        assert last.success == (ep.outcome == "success"), s
+        seen.add(last.success)
+    assert seen == {True, False}

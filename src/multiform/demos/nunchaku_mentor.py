@@ -240,6 +240,33 @@ class NunchakuMentor:
         if not self.events["outcome"]:
             self.events["outcome"] = {"t6": "no release", "t7": "nothing caught"}.get(tag, "failure")
 
+    def grade_trial(self, episode: Episode, swung_up: str = "P1", rolled: str = "P2", regrasped: str = "P3",
+                    touch: float = 0.5) -> list[SegmentLabel]:
+        """The person's verdict on each stay of a robot's trial, from what the trial shows: the magnet
+        letting go, the chain pressing on the back of the hand (above ``touch`` N), a rod caught and
+        held for ``hold_time`` s to the end. ``episode`` is the trial seen by place (its tags are the
+        place the robot's token was in, as :func:`multiform.learn.views.place_episode` gives). The
+        swing-up stay succeeded when a release followed and the chain then rolled over the back of the
+        hand; the two later stays when the flip ended with a rod held. No simulator state is read."""
+        grip = episode.column("grip") > 0.5
+        pressed = episode.column("touch") > touch
+        n, dt = episode.num_samples, episode.dt
+        released = np.flatnonzero(~grip)
+        release = int(released[0]) if len(released) else n
+        caught = int(released[-1]) + 1 if len(released) and grip[-1] else n
+        rolled_over = bool(pressed[release:caught].any())
+        flipped = rolled_over and caught < n and (n - caught) * dt >= self.hold_time - 1e-9
+        out = []
+        for start, end, place in episode.segments():
+            if place == swung_up:
+                ok = release <= end + 1 and rolled_over
+            elif place in (rolled, regrasped):
+                ok = flipped
+            else:
+                continue
+            out.append(SegmentLabel(start, end, place, bool(ok), self.name))
+        return out
+
     def label(self, episode: Episode) -> list[SegmentLabel]:
         """Success or failure of every segment, judged from what happened next."""
         ev = self.events

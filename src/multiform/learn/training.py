@@ -123,8 +123,11 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
     def subset(idx: np.ndarray) -> np.ndarray:
         return idx if len(idx) <= s.max_train else np.sort(rng.choice(idx, s.max_train, replace=False))
 
+    spread = np.maximum(data.Y.std(axis=0), 1e-12)     # of all the law's data: a command that the held-out
+                                                        # episodes happen to hold constant (a magnet) divides by ~0
+
     def nrmse(pred: np.ndarray, Y: np.ndarray) -> float:
-        return float((np.sqrt(np.mean((pred - Y) ** 2, axis=0)) / np.maximum(Y.std(axis=0), 1e-12)).max())
+        return float((np.sqrt(np.mean((pred - Y) ** 2, axis=0)) / spread).max())
 
     demos = np.unique(data.episode)
     summary: dict[str, Any] = {"n": int(len(data.X)), "demos": int(np.sum(demos < len(episodes))),

@@ -101,6 +101,16 @@ def physical_success(trace: Trace) -> bool:
             and ev["catch"] is not None and ev["held_for"] >= HOLD_TIME - 1e-9)
 
 
+MENTOR_EVERY = 3                   # the mentor grades every third trial of learning from practice
+MENTOR_BUDGET = 20                 # and at most this many
+
+
+def mentor_grader():
+    """The scripted mentor watching a practice trial: one verdict per stay, from the trace alone."""
+    mentor = make_mentor()
+    return lambda episode, apn: mentor.grade_trial(episode)
+
+
 def scenarios() -> list[dict[str, Any]]:
     """Practice from the mentor's definition on randomised nunchakus. Constant failure is 6 failures
     in a row or 8 of the last 10 trials: a flip that works most of the time fails now and then
@@ -111,6 +121,12 @@ def scenarios() -> list[dict[str, Any]]:
         {"name": "a_practice", "title": "(a) practice from the mentor's definition on randomised nunchakus",
          "options": trial_options,
          "config": {"failures_in_a_row": 6, "window": 10, "failure_rate": 0.8, "success_streak": 5}},
+        {"name": "b_keep", "title": "(b) practice as evaluated, learning from its own graded experience",
+         "options": trial_options, "mentor": mentor_grader, "learn": True, "seed": 1,
+         "config": {"failures_in_a_row": 6, "window": 10, "failure_rate": 0.8, "success_streak": 10**6,
+                    "learn": True, "explore": 0.3, "explore_every": 2, "refit_every": 10,
+                    "mentor_every": MENTOR_EVERY, "mentor_budget": MENTOR_BUDGET, "target_rate": 0.95,
+                    "target_window": 20, "revert_window": 10, "exam": True}},
     ]
 
 
