@@ -39,9 +39,9 @@ import numpy as np
 
 from ..petri.analysis import success_reachable
 from ..petri.guard import parse_guard, to_text
-from ..petri.net import APN
+from ..petri.net import APN, is_clock
 from ..runtime.trace import Trace
-from .mentor import MentorEvidence, is_clock
+from .mentor import MentorEvidence
 
 STARVED = 0.01          # λ below this share of its choice group counts as starved
 STRICT = 0.5            # a condition holding at fewer of the mentor's switch moments is too strict

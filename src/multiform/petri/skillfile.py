@@ -19,7 +19,7 @@ import yaml
 
 from ..errors import InvalidInput, Problem
 from .guard import GuardError, parse_guard
-from .net import APN, FINAL_KINDS, Condition, Law, Place, Transition
+from .net import APN, FINAL_KINDS, Condition, Law, Place, Transition, condition_names, is_clock
 
 IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 TOP_KEYS = {"skill", "description", "env", "control_rate", "max_duration", "variables", "derived",
@@ -158,7 +158,6 @@ def build_apn(data: Mapping[str, Any], file: str, problems: list[Problem]) -> AP
     for tid in transition_ids & place_ids:
         bad(f"transitions.{tid}", "duplicate id: also used by a place")
 
-    clock_names = {"time", "dwell"} | {f"dwell_{p}" for p in place_ids} | {f"fires_{t}" for t in transition_ids}
     derived: dict[str, Any] = {}
     raw_derived = data.get("derived", {}) or {}
     if not isinstance(raw_derived, Mapping):
@@ -172,12 +171,15 @@ def build_apn(data: Mapping[str, Any], file: str, problems: list[Problem]) -> AP
         if dname in variables:
             bad(el, "duplicate id: also a state variable")
             continue
+        if is_clock(dname):
+            bad(el, "reserved for the net's clocks and counters")
+            continue
         try:
             derived[dname] = parse_guard(str(expr) if isinstance(expr, (int, float)) else expr,
-                                         set(variables) | set(derived) | clock_names)
+                                         condition_names(variables, derived, place_ids, transition_ids))
         except GuardError as exc:
             bad(el, str(exc))
-    allowed = frozenset(set(variables) | set(derived) | clock_names)
+    allowed = condition_names(variables, derived, place_ids, transition_ids)
 
     laws = _laws(data.get("laws"), allowed, tuple(commands), bad)
     safety = parse_safety(data.get("safety"), set(variables) | set(derived), tuple(commands), bad)
@@ -330,7 +332,7 @@ def _variables(raw: Any, bad) -> dict[str, str]:
     for name, desc in raw.items():
         if not isinstance(name, str) or not IDENT.match(name) or name.startswith("__"):
             bad(f"variables.{name}", "not a valid variable name")
-        elif name in ("time", "dwell") or name.startswith(("dwell_", "fires_")):
+        elif is_clock(name):
             bad(f"variables.{name}", "reserved for the net's clocks and counters")
         else:
             out[name] = "" if desc is None else str(desc)
