@@ -115,12 +115,8 @@ class NetRunner:
         # A condition that yields to other transitions holds only where none of theirs does.
         own = list(self._guards)
         for j, t in enumerate(apn.transitions):
-            if t.condition.unless:
-                unknown = [u for u in t.condition.unless if u not in apn.transition_ids]
-                if unknown:
-                    raise InvalidInput(f"condition yields to unknown transition(s) {', '.join(unknown)}",
-                                       element=f"transitions.{t.id}.condition.unless")
-                others = [own[apn.transition_ids.index(u)] for u in t.condition.unless]
+            if t.condition.unless:          # the skill loader checked that they are transitions of the net
+                others = [own[apn.transition_index(u)] for u in t.condition.unless]
                 self._guards[j] = _yielding(own[j], others)
         self._n_slots = n_slots
         self._pre_cols = [[(apn.place_index(p), w) for p, w in t.inputs.items()] for t in apn.transitions]
