@@ -42,8 +42,6 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from scipy.special import expit
-
 from ..demos.episode import Episode, SegmentLabel
 from ..errors import InvalidInput
 from ..io import read_json, write_json
@@ -538,14 +536,11 @@ class Practice:
         regions = self.model.regions()
         scorer = regions.scores if regions is not None else None
         names = tuple(regions.input_names) if regions is not None else ()
-        leave = None
-        if regions is not None:
-            self.learners.include_own_stays(list(kept.values()))
-            leave = {p: float(expit(z)) for p, z in self.learners.leave_floors().items()}   # no overflow at -inf
+        leave = self.learners.include_own_stays(list(kept.values())) if regions is not None else None
 
         def diagnosis(net: APN, trials: list[int]) -> Any:
             ok = [t["fired"] for t in state.trials if t["success"] and t["trial"] in set(trials)]
-            return diagnose(net, [kept[k] for k in trials if k in kept], scorer, names, leave_scores=leave,
+            return diagnose(net, [kept[k] for k in trials if k in kept], scorer, names, leave_below=leave,
                             mentor=self.learners.mentor(net), succeeded_fired=ok)
 
         last = max((r["after_trial"] for r in state.revisions), default=-1)
