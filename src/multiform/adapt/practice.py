@@ -120,13 +120,13 @@ class PracticeConfig:
 
 @dataclass
 class PracticeState:
-    """What the loop has done so far (``state.json``)."""
+    """What the loop has done so far (``state.json``; files that still hold the ``lambda_exhausted``
+    it now derives from ``revisions`` load as before, the entry ignored)."""
 
     trial: int = 0
     trials: list[dict[str, Any]] = field(default_factory=list)
     revisions: list[dict[str, Any]] = field(default_factory=list)
     failed_since_repair: list[int] = field(default_factory=list)
-    lambda_exhausted: list[str] = field(default_factory=list)
     repairs_without_effect: int = 0
     mentor_graded: list[dict[str, Any]] = field(default_factory=list)
     watch: dict[str, Any] | None = None
@@ -136,6 +136,23 @@ class PracticeState:
     done: bool = False
     stop_reason: str = ""
     format_version: int = STATE_VERSION
+
+    @property
+    def lambda_exhausted(self) -> list[str]:
+        """Transitions whose λ was already lowered without curing the failures (:func:`~.repair.adjust_lambda`
+        tries Λ on them no more), read off ``revisions``: a λ repair of a transition whose λ a repair
+        set before exhausts it; a repair of anything else (a condition, a law, the structure) starts
+        afresh; reverts and refits change nothing."""
+        exhausted: set[str] = set()
+        lowered: set[str] = set()
+        for r in self.revisions:
+            if r["operator"] == "set_lambda":
+                if r["target"] in lowered:
+                    exhausted.add(r["target"])
+                lowered.add(r["target"])
+            elif r["operator"] not in ("revert", "refit_law", "none"):
+                exhausted = set()
+        return sorted(exhausted)
 
     @property
     def streak(self) -> tuple[int, int]:
@@ -577,13 +594,6 @@ class Practice:
                         "after_trial": state.trial - 1, "visited": sorted(d.visited),
                         "failed": list(state.failed_since_repair)}
         self._watch(state, first, self.model.version)
-        ops = {r.operator for r in fix.revisions}
-        if ops == {"set_lambda"}:
-            state.lambda_exhausted = sorted(set(state.lambda_exhausted) | {fix.revisions[0].target}) \
-                if any(r["operator"] == "set_lambda" and r["target"] == fix.revisions[0].target
-                       for r in state.revisions[:-1]) else state.lambda_exhausted
-        else:
-            state.lambda_exhausted = []
         state.failed_since_repair = []
 
 
