@@ -262,17 +262,7 @@ class Practice:
                 judges = self.model.judges() if cfg.use_judges else {}
             k = state.trial
             t0 = time.perf_counter()
-            draw = self._exam_draw(state)
-            explores = explorer is not None and cfg.explores(k) and draw is None
-            draw = k if draw is None else draw
-            runner = executor
-            if explores:
-                for i, law in enumerate(sorted(explorer.laws)):
-                    explorer.laws[law].reseed(cfg.trial_seed(k) * 31 + i)
-                runner = explorer
-            view = self.observe(k, executor) if self.observe else None
-            trace = runner.run(seed=cfg.trial_seed(draw), options=self.options(draw),
-                               perturb=self.perturb(draw) if self.perturb else None, observer=view)
+            trace, draw, explores, view = self._trial(state, executor, explorer)
             if trace.outcome == "fault":
                 # a non-finite value is the model's or the simulator's fault, not the skill's: nothing
                 # is learned or repaired from it, and practice stops until someone looks
@@ -285,19 +275,7 @@ class Practice:
                 if grade is not None:
                     view.grade(grade, success)
                 view.close()
-            summary = {"trial": k, "seed": cfg.trial_seed(draw), "net_version": version, "outcome": trace.outcome,
-                       "success": bool(success), "judge_score": None if grade is None else round(grade.score, 4),
-                       "judge_places": None if grade is None else {p: round(v, 4) for p, v in grade.places.items()},
-                       "duration": round(trace.duration, 3), "fired": trace.fired(),
-                       "clips": {c: v["count"] for c, v in trace.clips.items()},
-                       "wall": round(time.perf_counter() - t0, 3),
-                       "time": time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime())}
-            if not is_evidence(trace.outcome):
-                summary["evidence"] = False
-            if cfg.explore > 0:
-                summary["explored"] = explores
-            if draw != k:
-                summary["draw"] = draw
+            summary = self._summary(k, draw, version, trace, grade, success, explores, t0)
             if cfg.learn and grade is not None:
                 summary.update(self._learn_from(state, k, trace, grade, executor.apn))
                 if "revised" in summary.get("mentor", {}):
@@ -308,27 +286,72 @@ class Practice:
                 state.failed_since_repair.append(k)
             state.trial += 1
             ran += 1
-            succ, fail = state.streak
-            if cfg.learn:
-                self._check_watch(state)
-            if succ >= cfg.success_streak:
-                state.done, state.stop_reason = True, f"{succ} successes in a row"
-            elif self._reached_target(state):
-                state.done = True
-                state.stop_reason = (f"own success rate {self._plain_rate(state, cfg.target_window):.2f} over the last "
-                                     f"{cfg.target_window} plain trials")
-            elif self._constant_failure(state):
-                self._repair(state)
-            if not state.done and cfg.learn and (state.watch is None or not cfg.exam) \
-                    and state.trial - state.last_refit_trial - 1 >= cfg.refit_every \
-                    and cfg.max_trials - state.trial >= self._watch_trials():
-                self._refit(state)
+            self._after_trial(state)
             self.save_state(state)
             if progress:
                 progress(state, summary)
         self.save_state(state)
         env.close()
         return state
+
+    def _trial(self, state: PracticeState, executor: Executor, explorer: Executor | None
+               ) -> tuple[Trace, int, bool, Any]:
+        """Run trial ``state.trial`` on its own draw, or on the draw an exam replays; exploring when
+        due and not replaying. Returns its trace, the draw, whether it explored, and its view (or None)."""
+        cfg = self.config
+        k = state.trial
+        draw = self._exam_draw(state)
+        explores = explorer is not None and cfg.explores(k) and draw is None
+        draw = k if draw is None else draw
+        runner = executor
+        if explores:
+            for i, law in enumerate(sorted(explorer.laws)):
+                explorer.laws[law].reseed(cfg.trial_seed(k) * 31 + i)
+            runner = explorer
+        view = self.observe(k, executor) if self.observe else None
+        trace = runner.run(seed=cfg.trial_seed(draw), options=self.options(draw),
+                           perturb=self.perturb(draw) if self.perturb else None, observer=view)
+        return trace, draw, explores, view
+
+    def _summary(self, k: int, draw: int, version: int, trace: Trace, grade: Any, success: bool, explores: bool,
+                 t0: float) -> dict[str, Any]:
+        """Trial ``k``'s entry in the state (``trials``), run on the draw (seed, start, push) of
+        trial ``draw``."""
+        cfg = self.config
+        summary = {"trial": k, "seed": cfg.trial_seed(draw), "net_version": version, "outcome": trace.outcome,
+                   "success": bool(success), "judge_score": None if grade is None else round(grade.score, 4),
+                   "judge_places": None if grade is None else {p: round(v, 4) for p, v in grade.places.items()},
+                   "duration": round(trace.duration, 3), "fired": trace.fired(),
+                   "clips": {c: v["count"] for c, v in trace.clips.items()},
+                   "wall": round(time.perf_counter() - t0, 3),
+                   "time": time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime())}
+        if not is_evidence(trace.outcome):
+            summary["evidence"] = False
+        if cfg.explore > 0:
+            summary["explored"] = explores
+        if draw != k:
+            summary["draw"] = draw
+        return summary
+
+    def _after_trial(self, state: PracticeState) -> None:
+        """After a trial: check a watched revision; stop on a success streak or the target rate,
+        repair on constant failure; refit the laws when due."""
+        cfg = self.config
+        succ, _ = state.streak
+        if cfg.learn:
+            self._check_watch(state)
+        if succ >= cfg.success_streak:
+            state.done, state.stop_reason = True, f"{succ} successes in a row"
+        elif self._reached_target(state):
+            state.done = True
+            state.stop_reason = (f"own success rate {self._plain_rate(state, cfg.target_window):.2f} over the last "
+                                 f"{cfg.target_window} plain trials")
+        elif self._constant_failure(state):
+            self._repair(state)
+        if not state.done and cfg.learn and (state.watch is None or not cfg.exam) \
+                and state.trial - state.last_refit_trial - 1 >= cfg.refit_every \
+                and cfg.max_trials - state.trial >= self._watch_trials():
+            self._refit(state)
 
     # -- learning from practice ----------------------------------------------------------------------
     def _explorer(self, executor: Executor) -> Executor:
