@@ -158,12 +158,37 @@ def build_apn(data: Mapping[str, Any], file: str, problems: list[Problem]) -> AP
     for tid in transition_ids & place_ids:
         bad(f"transitions.{tid}", "duplicate id: also used by a place")
 
+    derived = _derived(data.get("derived", {}) or {}, variables, place_ids, transition_ids, bad)
+    allowed = condition_names(variables, derived, place_ids, transition_ids)
+
+    laws = _laws(data.get("laws"), allowed, tuple(commands), bad)
+    safety = parse_safety(data.get("safety"), set(variables) | set(derived), tuple(commands), bad)
+    mirror = parse_mirror(data.get("mirror"), set(variables), tuple(commands), bad)
+    transitions = parse_transitions(transitions_raw, place_ids, transition_ids, allowed, laws, bad)
+    transitions = _extra_arcs(data.get("arcs"), transitions, place_ids, bad)
+
+    initial = _initial_marking(data.get("initial_marking"), place_ids, bad)
+
+    if not any(p.final == "success" for p in places) and places:
+        bad("places", "no place is marked 'final: success'")
+    apn = APN(name=name, places=tuple(places), transitions=tuple(transitions), initial_marking=initial,
+              variables=variables, derived=derived, commands=tuple(commands), laws=laws,
+              description=str(data.get("description", "") or ""), env=str(data.get("env", "") or ""),
+              control_rate=control_rate, max_duration=max_duration, safety=safety, mirror=mirror)
+    if initial and places and not problems:
+        _check_final_reachable(apn, bad)
+    return apn
+
+
+def _derived(raw: Any, variables: Mapping[str, str], place_ids: set[str], transition_ids: set[str],
+             bad) -> dict[str, Any]:
+    """The derived variables, each an expression over the state variables, the clocks and the
+    derived variables before it."""
     derived: dict[str, Any] = {}
-    raw_derived = data.get("derived", {}) or {}
-    if not isinstance(raw_derived, Mapping):
+    if not isinstance(raw, Mapping):
         bad("derived", "must be a mapping of name to expression")
-        raw_derived = {}
-    for dname, expr in raw_derived.items():
+        return derived
+    for dname, expr in raw.items():
         el = f"derived.{dname}"
         if not isinstance(dname, str) or not IDENT.match(dname):
             bad(el, "not a valid name")
@@ -179,41 +204,28 @@ def build_apn(data: Mapping[str, Any], file: str, problems: list[Problem]) -> AP
                                          condition_names(variables, derived, place_ids, transition_ids))
         except GuardError as exc:
             bad(el, str(exc))
-    allowed = condition_names(variables, derived, place_ids, transition_ids)
+    return derived
 
-    laws = _laws(data.get("laws"), allowed, tuple(commands), bad)
-    safety = parse_safety(data.get("safety"), set(variables) | set(derived), tuple(commands), bad)
-    mirror = parse_mirror(data.get("mirror"), set(variables), tuple(commands), bad)
-    transitions = parse_transitions(transitions_raw, place_ids, transition_ids, allowed, laws, bad)
-    transitions = _extra_arcs(data.get("arcs"), transitions, place_ids, bad)
 
-    marking_raw = data.get("initial_marking")
+def _initial_marking(raw: Any, place_ids: set[str], bad) -> dict[str, int]:
+    """Place id -> tokens, of the places that hold any."""
     initial: dict[str, int] = {}
-    if not isinstance(marking_raw, Mapping) or not marking_raw:
+    if not isinstance(raw, Mapping) or not raw:
         bad("initial_marking", "no initial marking (a mapping of place id to token count)")
-    else:
-        for p, n in marking_raw.items():
-            el = f"initial_marking.{p}"
-            if p not in place_ids:
-                bad(el, f"unknown place {p!r}")
-            elif not _is_int(n) or n < 0:
-                bad(el, f"token count must be a non-negative integer, got {_shown(n)}")
-            elif n > MAX_COUNT:
-                bad(el, f"token count {_shown(n)} is out of range (at most {MAX_COUNT})")
-            elif n > 0:
-                initial[str(p)] = int(n)
-        if not initial and isinstance(marking_raw, Mapping) and marking_raw:
-            bad("initial_marking", "no place holds a token")
-
-    if not any(p.final == "success" for p in places) and places:
-        bad("places", "no place is marked 'final: success'")
-    apn = APN(name=name, places=tuple(places), transitions=tuple(transitions), initial_marking=initial,
-              variables=variables, derived=derived, commands=tuple(commands), laws=laws,
-              description=str(data.get("description", "") or ""), env=str(data.get("env", "") or ""),
-              control_rate=control_rate, max_duration=max_duration, safety=safety, mirror=mirror)
-    if initial and places and not problems:
-        _check_final_reachable(apn, bad)
-    return apn
+        return initial
+    for p, n in raw.items():
+        el = f"initial_marking.{p}"
+        if p not in place_ids:
+            bad(el, f"unknown place {p!r}")
+        elif not _is_int(n) or n < 0:
+            bad(el, f"token count must be a non-negative integer, got {_shown(n)}")
+        elif n > MAX_COUNT:
+            bad(el, f"token count {_shown(n)} is out of range (at most {MAX_COUNT})")
+        elif n > 0:
+            initial[str(p)] = int(n)
+    if not initial:
+        bad("initial_marking", "no place holds a token")
+    return initial
 
 
 def parse_mirror(raw: Any, variables: set[str], commands: tuple[str, ...], bad) -> dict[str, int]:
