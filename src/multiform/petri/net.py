@@ -280,7 +280,7 @@ class APN:
         return value_names(tuple(self.variables), tuple(self.derived), self.place_ids, self.transition_ids)
 
     def condition_variables(self) -> frozenset[str]:
-        """Every name a condition or law input may use in this net (:func:`condition_names`)."""
+        """Every name a condition or law input may use in this net: its ``value_names`` and ``dwell``."""
         return condition_names(tuple(self.variables), tuple(self.derived), self.place_ids, self.transition_ids)
 
     # -- structural edits (used by revisions; each returns a new net) ---------------------------
