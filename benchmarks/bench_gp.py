@@ -83,7 +83,16 @@ def main() -> None:
     states = [Xt[i].copy() for i in range(1000)]
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} "
           f"(other work on a shared machine inflates every figure)")
+    exact, X, Y = fit_exact(rng, Xt, Yt_true)
+    one_state(exact, X, Y, Xt, states, rng, args)
+    if args.quick:
+        return
+    sparse_section(rng, Xt, Yt_true, states, args)
+    print(f"\nload average at the end: {os.getloadavg()[0]:.2f} (1 min), {os.getloadavg()[1]:.2f} (5 min)")
 
+
+def fit_exact(rng: np.random.Generator, Xt: np.ndarray, Yt_true: np.ndarray) -> tuple[GPLaw, np.ndarray, np.ndarray]:
+    """The exact law on 2,000 points: fit time, hyperparameters, held-out error."""
     print("\n== fit with hyperparameters, n = 2,000, 5 inputs, 2 outputs (defaults: ARD, n_hyper=1000, "
           "2 restarts on a 300-point probe, fitting pinned to 1 BLAS thread) ==")
     X, Y = sample(2000, rng)
@@ -97,7 +106,12 @@ def main() -> None:
           f"σf {s['sigma_f']:.3g}, noise {s['noise']:.3g} (standardised)")
     print("  length scales: " + ", ".join(f"{k} {v:.3g}" for k, v in s["length_scale"].items()))
     print("  held-out nRMSE vs the noiseless law: " + ", ".join(f"{v:.4f}" for v in s["heldout_nrmse"]))
+    return exact, X, Y
 
+
+def one_state(exact: GPLaw, X: np.ndarray, Y: np.ndarray, Xt: np.ndarray, states: list[np.ndarray],
+              rng: np.random.Generator, args: argparse.Namespace) -> None:
+    """Latency of one state's mean and variance, exact laws of 250 to 2,000 points."""
     theta = np.concatenate([np.log(exact.length_scale_), [np.log(exact.sigma_f_), np.log(exact.noise_)]])
     print("\n== one state, one core (BLAS pinned to 1 thread with threadpoolctl), "
           f"{args.calls} calls each ==")
@@ -127,8 +141,10 @@ def main() -> None:
         print(f"  → GPLaw computes the variance exactly on the hot path up to n = {exact.exact_var_max_n} "
               "(exact_var_max_n); above, through a FITC companion on n_inducing points (O(m²)).")
 
-    if args.quick:
-        return
+
+def sparse_section(rng: np.random.Generator, Xt: np.ndarray, Yt_true: np.ndarray, states: list[np.ndarray],
+                   args: argparse.Namespace) -> None:
+    """The sparse law on 50,000 points: fit time, held-out error, latency."""
     print("\n== sparse GP: n = 50,000, m = 300 inducing points (k-means), FITC ==")
     Xb, Yb = sample(50_000, rng)
     t0 = time.perf_counter()
@@ -146,7 +162,6 @@ def main() -> None:
         t = timed("sparse m=300, mean + variance (predict_one_var)", sparse.predict_one_var, states, args.calls, args.repeats)
         p99 = np.percentile(t, 99) * 1e6
         print(f"  target p99 ≤ 30 µs: {'met' if p99 <= 30 else 'NOT met'} ({p99:.2f} µs)")
-    print(f"\nload average at the end: {os.getloadavg()[0]:.2f} (1 min), {os.getloadavg()[1]:.2f} (5 min)")
 
 
 if __name__ == "__main__":

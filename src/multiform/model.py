@@ -495,9 +495,10 @@ class ModelLearners:
         return r
 
     def leave_floors(self) -> dict[str, float]:
-        """Per place with a region, the logit below which the state has left it: the lowest the
-        mentor's successful stays there reached (:func:`~multiform.learn.training.region_floor`).
-        Diagnosis, ways back and the "outside" condition all use this one meaning of "left"."""
+        """Per place with a region, the calibrated logit below which the state has left it: the lowest
+        the mentor's successful stays there reached (:func:`~multiform.learn.training.region_floor`).
+        Diagnosis, ways back and the "outside" condition all use this one meaning of "left", in
+        this one unit."""
         if self._floors is None:
             from .learn.training import region_floor
             regions = self._regions()

@@ -1,4 +1,5 @@
 import numpy as np
+from scipy.special import logit
 
 from multiform.adapt.diagnosis import diagnose
 from multiform.adapt.repair import adjust_lambda, repair
@@ -160,7 +161,7 @@ def test_timeouts_are_not_disturbances():
 
 def test_a_stray_just_outside_is_not_lost():
     """A state just outside P2's region, no further out than the mentor's successful stays went
-    (P2 score above its leave score), is not evidence for a new place; once it goes further, it is."""
+    (P2 score above its floor), is not evidence for a new place; once it goes further, it is."""
     apn = load_skill("pendulum")
     n = 200
     v = vals(n, 0.05)
@@ -171,10 +172,10 @@ def test_a_stray_just_outside_is_not_lost():
     def scores(states):
         th = np.abs(states[:, 0])
         return {"P1": np.full(len(states), 0.01), "P2": np.where(th < 0.25, 0.95, np.where(th < 0.5, 0.2, 1e-9))}
-    assert diagnose(apn, tr, scores, ("theta", "omega", "x"), leave_scores={"P2": 1e-6}).exits == []
-    # without leave scores, or with a state beyond them, the same trials show a lost state
+    assert diagnose(apn, tr, scores, ("theta", "omega", "x"), leave_below={"P2": float(logit(1e-6))}).exits == []
+    # without floors, or with a state beyond them, the same trials show a lost state
     assert len(diagnose(apn, tr, scores, ("theta", "omega", "x")).exits) == 3
     v[180:, 0] = 0.9
     tr = [make_trace(apn, fir, v, "failure") for _ in range(3)]
-    d = diagnose(apn, tr, scores, ("theta", "omega", "x"), leave_scores={"P2": 1e-6})
+    d = diagnose(apn, tr, scores, ("theta", "omega", "x"), leave_below={"P2": float(logit(1e-6))})
     assert [(e.best, round(e.state[0], 2)) for e in d.exits] == [(None, 0.9)] * 3

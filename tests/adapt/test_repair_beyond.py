@@ -4,6 +4,8 @@ the practice loop reverting a repair that did not help before trying the next ca
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import yaml
@@ -294,3 +296,31 @@ def test_a_clock_limit_is_read_as_the_net_saw_it_before_firing():
         tr.append(t)
     (f,) = [f for f in diagnose(apn, tr, mentor=mentor).findings if f.kind == "limit_too_tight"]
     assert f.condition == "dwell > 0.625"                        # 0.15 * 1.25 * 1.0 s / 0.3 s
+
+
+def test_which_lambdas_are_exhausted_is_read_off_the_revisions():
+    def rev(operator: str, target: str) -> dict:
+        return {"version": 1, "operator": operator, "target": target, "after_trial": 0}
+    state = PracticeState(revisions=[rev("set_lambda", "t3"), rev("refit_law", "balance"), rev("set_lambda", "t4")])
+    assert state.lambda_exhausted == []                        # each lowered once
+    state.revisions.append(rev("set_lambda", "t3"))
+    assert state.lambda_exhausted == ["t3"]                    # lowered again: Λ did not cure it
+    state.revisions += [rev("revert", "version 2"), rev("none", "")]
+    assert state.lambda_exhausted == ["t3"]                    # reverts and repairs that found nothing change nothing
+    state.revisions.append(rev("set_condition", "t1"))
+    assert state.lambda_exhausted == []                        # another kind of repair: Λ may help again
+    state.revisions.append(rev("set_lambda", "t4"))
+    assert state.lambda_exhausted == ["t4"]                    # its earlier lowering still counts
+
+
+def test_a_practice_state_saved_with_lambda_exhausted_still_loads(tmp_path):
+    model, practice, state = _practice(tmp_path, helped=False)
+    practice._repair(state)                                    # a revert, then λ(t8) set to 0
+    practice.save_state(state)
+    data = json.loads(practice.state_path.read_text())
+    assert "lambda_exhausted" not in data
+    data["lambda_exhausted"] = ["t3"]                          # a file written when the state kept the list
+    practice.state_path.write_text(json.dumps(data))
+    loaded = practice.load_state()
+    assert loaded.revisions == state.revisions and loaded.tried == state.tried
+    assert loaded.lambda_exhausted == []                       # read off the revisions, not the file

@@ -39,9 +39,9 @@ import numpy as np
 
 from ..petri.analysis import success_reachable
 from ..petri.guard import parse_guard, to_text
-from ..petri.net import APN
+from ..petri.net import APN, is_clock
 from ..runtime.trace import Trace
-from .mentor import MentorEvidence, is_clock
+from .mentor import MentorEvidence
 
 STARVED = 0.01          # λ below this share of its choice group counts as starved
 STRICT = 0.5            # a condition holding at fewer of the mentor's switch moments is too strict
@@ -280,30 +280,11 @@ def _limits(apn: APN, failed: list[Trace], succeeded: list[list[str]], mentor: M
             names = _vars(expr)
             if not names or _eval(atom, env) <= 0:
                 continue
-            if all(is_clock(n) for n in names):
-                if mentor_stay is None or op not in _GT or stay <= 0 or stay >= mentor_stay:
-                    continue
-                new = c * SLACK * mentor_stay / stay
-                if any(n.startswith("fires_") for n in names):
-                    new = float(math.ceil(new))
-                notes.setdefault(f.id, []).append({"atom": to_text(atom), "robot_stay_s": round(stay, 3),
-                                                   "mentor_longest_successful_stay_s": round(mentor_stay, 3)})
-            elif not any(is_clock(n) for n in names):
-                rng = mentor.stay_range(apn, place, expr)
-                v = _eval(expr, env)
-                if rng is None or not math.isfinite(v):
-                    continue
-                lo, hi = rng
-                if op in _GT and v <= hi:
-                    new = hi + 0.1 * max(abs(hi), 1e-3)
-                elif op in _LT and v >= lo:
-                    new = lo - 0.1 * max(abs(lo), 1e-3)
-                else:
-                    continue
-                notes.setdefault(f.id, []).append({"atom": to_text(atom), "robot_value": round(v, 4),
-                                                   "mentor_successful_range": [round(lo, 4), round(hi, 4)]})
-            else:
+            moved = _moved_limit(apn, place, mentor, atom, expr, op, c, names, env, stay, mentor_stay)
+            if moved is None:
                 continue
+            new, note = moved
+            notes.setdefault(f.id, []).append(note)
             new = float(f"{new:.4g}")
             best = moves.setdefault(f.id, {})
             old = best.get(path)
@@ -321,6 +302,38 @@ def _limits(apn: APN, failed: list[Trace], succeeded: list[list[str]], mentor: M
                            f"mentor's successful stays were still going; moved to '{text}'",
                            {"trials": n, "examples": notes[fid][:3]}, condition=text))
     return out
+
+
+def _moved_limit(apn: APN, place: str, mentor: MentorEvidence, atom: tuple, expr: tuple, op: Any, c: float,
+                 names: set[str], env: dict[str, float], stay: float, mentor_stay: float | None
+                 ) -> tuple[float, dict[str, Any]] | None:
+    """The new constant of a held atom ``expr op c`` of a give-up rule, and the note on why, or None
+    if the mentor's successful stays do not move it: a clock's constant scaled by the mentor's
+    longest stay over the robot's, a state bound moved beyond the mentor's range. An atom that mixes
+    clocks and state is left alone."""
+    if all(is_clock(n) for n in names):
+        if mentor_stay is None or op not in _GT or stay <= 0 or stay >= mentor_stay:
+            return None
+        new = c * SLACK * mentor_stay / stay
+        if any(n.startswith("fires_") for n in names):
+            new = float(math.ceil(new))
+        return new, {"atom": to_text(atom), "robot_stay_s": round(stay, 3),
+                     "mentor_longest_successful_stay_s": round(mentor_stay, 3)}
+    if any(is_clock(n) for n in names):
+        return None
+    rng = mentor.stay_range(apn, place, expr)
+    v = _eval(expr, env)
+    if rng is None or not math.isfinite(v):
+        return None
+    lo, hi = rng
+    if op in _GT and v <= hi:
+        new = hi + 0.1 * max(abs(hi), 1e-3)
+    elif op in _LT and v >= lo:
+        new = lo - 0.1 * max(abs(lo), 1e-3)
+    else:
+        return None
+    return new, {"atom": to_text(atom), "robot_value": round(v, 4),
+                 "mentor_successful_range": [round(lo, 4), round(hi, 4)]}
 
 
 def _get(tree: tuple, path: tuple) -> tuple:

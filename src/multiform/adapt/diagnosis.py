@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.special import expit
 
 from ..petri.net import APN
 from ..runtime.trace import Trace
@@ -82,16 +83,18 @@ class Diagnosis:
 
 def diagnose(apn: APN, traces: Sequence[Trace], region_scores: RegionScorer | None = None,
              region_names: Sequence[str] = (), region_threshold: float = 0.5,
-             leave_scores: Mapping[str, float] | None = None, mentor: MentorEvidence | None = None,
+             leave_below: Mapping[str, float] | None = None, mentor: MentorEvidence | None = None,
              succeeded_fired: Sequence[Sequence[str]] = ()) -> Diagnosis:
     """Diagnose the failed trials among ``traces`` (all run on ``apn``).
 
     ``region_scores`` scores states (columns ``region_names`` of the traces' values) against every
     place's learned region; with it the diagnosis finds where the state left its place (its score
     fell below ``region_threshold``). Such a state counts as lost (no place relates to it) only if
-    the state then went below ``leave_scores[p]`` of its place p (default: the same threshold) with
-    still no place matching — the mentor succeeded from states just outside a region, so a catch
-    that strays a little is not a new place. With ``mentor`` the findings of
+    the state then went below the floor ``leave_below[p]`` of its place p with still no place
+    matching — the mentor succeeded from states just outside a region, so a catch that strays a
+    little is not a new place. The floors are calibrated logits, as everywhere a floor travels
+    (:meth:`~multiform.model.ModelLearners.leave_floors`,
+    :class:`~multiform.learn.region.RegionCondition`); a place without one uses ``region_threshold``. With ``mentor`` the findings of
     :func:`~.compare.compare_with_mentor` are added; successful trials count there, those among
     ``traces`` and those given only by what they fired (``succeeded_fired``: practice keeps no
     trace of a success).
@@ -125,7 +128,7 @@ def diagnose(apn: APN, traces: Sequence[Trace], region_scores: RegionScorer | No
             d.risky_choices[c.chosen] += 1
             d.safer_siblings.setdefault(c.chosen, Counter()).update(x for x in c.candidates if x != c.chosen)
         if region_scores is not None and region_names and last is not None:
-            ex = _exit(apn, i, tr, region_scores, region_names, region_threshold, leave_scores or {})
+            ex = _exit(apn, i, tr, region_scores, region_names, region_threshold, leave_below or {})
             if ex is not None:
                 d.exits.append(ex)
     d.never_fired = [t for t in apn.transition_ids if t not in fired]
@@ -139,7 +142,7 @@ def diagnose(apn: APN, traces: Sequence[Trace], region_scores: RegionScorer | No
 
 
 def _exit(apn: APN, trial: int, tr: Trace, region_scores: RegionScorer, names: Sequence[str],
-          threshold: float, leave_scores: Mapping[str, float], max_lag: float = 2.0) -> Exit | None:
+          threshold: float, leave_below: Mapping[str, float], max_lag: float = 2.0) -> Exit | None:
     """Where the state left its place's region for good, shortly before the trial failed from that place
     (a disturbance throwing the state out), or None (the failure had another cause, e.g. a timeout)."""
     last = tr.firings[-1]
@@ -183,7 +186,8 @@ def _exit(apn: APN, trial: int, tr: Trace, region_scores: RegionScorer, names: S
     best = _best_other(scores, place, k, threshold)
     if best is None:
         # lost only once further out than the mentor's successful stays ever went
-        far = np.flatnonzero(scores[place][k:] < leave_scores.get(place, threshold))
+        floor = float(expit(leave_below[place])) if place in leave_below else threshold   # no overflow at -inf
+        far = np.flatnonzero(scores[place][k:] < floor)
         if len(far) == 0:
             return None
         k += int(far[0])

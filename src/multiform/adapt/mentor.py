@@ -36,15 +36,9 @@ import numpy as np
 from ..demos.episode import Episode
 from ..learn.condition import switch_windows
 from ..learn.views import law_data, stays, success_mask, switch_data, value_matrix
-from ..petri.net import APN
+from ..petri.net import APN, is_clock
 
-CLOCKS = ("time", "dwell")
 MOMENT = 0.1          # s after a switch in which the mentor's switch counts as one moment
-
-
-def is_clock(name: str) -> bool:
-    """Whether ``name`` is a clock or count variable of the net (time, dwell, dwell_P, fires_t)."""
-    return name in CLOCKS or name.startswith(("dwell_", "fires_"))
 
 
 @dataclass

@@ -42,8 +42,6 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from scipy.special import expit
-
 from ..demos.episode import Episode, SegmentLabel
 from ..errors import InvalidInput
 from ..io import read_json, write_json
@@ -122,13 +120,13 @@ class PracticeConfig:
 
 @dataclass
 class PracticeState:
-    """What the loop has done so far (``state.json``)."""
+    """What the loop has done so far (``state.json``; files that still hold the ``lambda_exhausted``
+    it now derives from ``revisions`` load as before, the entry ignored)."""
 
     trial: int = 0
     trials: list[dict[str, Any]] = field(default_factory=list)
     revisions: list[dict[str, Any]] = field(default_factory=list)
     failed_since_repair: list[int] = field(default_factory=list)
-    lambda_exhausted: list[str] = field(default_factory=list)
     repairs_without_effect: int = 0
     mentor_graded: list[dict[str, Any]] = field(default_factory=list)
     watch: dict[str, Any] | None = None
@@ -138,6 +136,23 @@ class PracticeState:
     done: bool = False
     stop_reason: str = ""
     format_version: int = STATE_VERSION
+
+    @property
+    def lambda_exhausted(self) -> list[str]:
+        """Transitions whose λ was already lowered without curing the failures (:func:`~.repair.adjust_lambda`
+        tries Λ on them no more), read off ``revisions``: a λ repair of a transition whose λ a repair
+        set before exhausts it; a repair of anything else (a condition, a law, the structure) starts
+        afresh; reverts and refits change nothing."""
+        exhausted: set[str] = set()
+        lowered: set[str] = set()
+        for r in self.revisions:
+            if r["operator"] == "set_lambda":
+                if r["target"] in lowered:
+                    exhausted.add(r["target"])
+                lowered.add(r["target"])
+            elif r["operator"] not in ("revert", "refit_law", "none"):
+                exhausted = set()
+        return sorted(exhausted)
 
     @property
     def streak(self) -> tuple[int, int]:
@@ -247,17 +262,7 @@ class Practice:
                 judges = self.model.judges() if cfg.use_judges else {}
             k = state.trial
             t0 = time.perf_counter()
-            draw = self._exam_draw(state)
-            explores = explorer is not None and cfg.explores(k) and draw is None
-            draw = k if draw is None else draw
-            runner = executor
-            if explores:
-                for i, law in enumerate(sorted(explorer.laws)):
-                    explorer.laws[law].reseed(cfg.trial_seed(k) * 31 + i)
-                runner = explorer
-            view = self.observe(k, executor) if self.observe else None
-            trace = runner.run(seed=cfg.trial_seed(draw), options=self.options(draw),
-                               perturb=self.perturb(draw) if self.perturb else None, observer=view)
+            trace, draw, explores, view = self._trial(state, executor, explorer)
             if trace.outcome == "fault":
                 # a non-finite value is the model's or the simulator's fault, not the skill's: nothing
                 # is learned or repaired from it, and practice stops until someone looks
@@ -270,19 +275,7 @@ class Practice:
                 if grade is not None:
                     view.grade(grade, success)
                 view.close()
-            summary = {"trial": k, "seed": cfg.trial_seed(draw), "net_version": version, "outcome": trace.outcome,
-                       "success": bool(success), "judge_score": None if grade is None else round(grade.score, 4),
-                       "judge_places": None if grade is None else {p: round(v, 4) for p, v in grade.places.items()},
-                       "duration": round(trace.duration, 3), "fired": trace.fired(),
-                       "clips": {c: v["count"] for c, v in trace.clips.items()},
-                       "wall": round(time.perf_counter() - t0, 3),
-                       "time": time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime())}
-            if not is_evidence(trace.outcome):
-                summary["evidence"] = False
-            if cfg.explore > 0:
-                summary["explored"] = explores
-            if draw != k:
-                summary["draw"] = draw
+            summary = self._summary(k, draw, version, trace, grade, success, explores, t0)
             if cfg.learn and grade is not None:
                 summary.update(self._learn_from(state, k, trace, grade, executor.apn))
                 if "revised" in summary.get("mentor", {}):
@@ -293,27 +286,72 @@ class Practice:
                 state.failed_since_repair.append(k)
             state.trial += 1
             ran += 1
-            succ, fail = state.streak
-            if cfg.learn:
-                self._check_watch(state)
-            if succ >= cfg.success_streak:
-                state.done, state.stop_reason = True, f"{succ} successes in a row"
-            elif self._reached_target(state):
-                state.done = True
-                state.stop_reason = (f"own success rate {self._plain_rate(state, cfg.target_window):.2f} over the last "
-                                     f"{cfg.target_window} plain trials")
-            elif self._constant_failure(state):
-                self._repair(state)
-            if not state.done and cfg.learn and (state.watch is None or not cfg.exam) \
-                    and state.trial - state.last_refit_trial - 1 >= cfg.refit_every \
-                    and cfg.max_trials - state.trial >= self._watch_trials():
-                self._refit(state)
+            self._after_trial(state)
             self.save_state(state)
             if progress:
                 progress(state, summary)
         self.save_state(state)
         env.close()
         return state
+
+    def _trial(self, state: PracticeState, executor: Executor, explorer: Executor | None
+               ) -> tuple[Trace, int, bool, Any]:
+        """Run trial ``state.trial`` on its own draw, or on the draw an exam replays; exploring when
+        due and not replaying. Returns its trace, the draw, whether it explored, and its view (or None)."""
+        cfg = self.config
+        k = state.trial
+        draw = self._exam_draw(state)
+        explores = explorer is not None and cfg.explores(k) and draw is None
+        draw = k if draw is None else draw
+        runner = executor
+        if explores:
+            for i, law in enumerate(sorted(explorer.laws)):
+                explorer.laws[law].reseed(cfg.trial_seed(k) * 31 + i)
+            runner = explorer
+        view = self.observe(k, executor) if self.observe else None
+        trace = runner.run(seed=cfg.trial_seed(draw), options=self.options(draw),
+                           perturb=self.perturb(draw) if self.perturb else None, observer=view)
+        return trace, draw, explores, view
+
+    def _summary(self, k: int, draw: int, version: int, trace: Trace, grade: Any, success: bool, explores: bool,
+                 t0: float) -> dict[str, Any]:
+        """Trial ``k``'s entry in the state (``trials``), run on the draw (seed, start, push) of
+        trial ``draw``."""
+        cfg = self.config
+        summary = {"trial": k, "seed": cfg.trial_seed(draw), "net_version": version, "outcome": trace.outcome,
+                   "success": bool(success), "judge_score": None if grade is None else round(grade.score, 4),
+                   "judge_places": None if grade is None else {p: round(v, 4) for p, v in grade.places.items()},
+                   "duration": round(trace.duration, 3), "fired": trace.fired(),
+                   "clips": {c: v["count"] for c, v in trace.clips.items()},
+                   "wall": round(time.perf_counter() - t0, 3),
+                   "time": time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime())}
+        if not is_evidence(trace.outcome):
+            summary["evidence"] = False
+        if cfg.explore > 0:
+            summary["explored"] = explores
+        if draw != k:
+            summary["draw"] = draw
+        return summary
+
+    def _after_trial(self, state: PracticeState) -> None:
+        """After a trial: check a watched revision; stop on a success streak or the target rate,
+        repair on constant failure; refit the laws when due."""
+        cfg = self.config
+        succ, _ = state.streak
+        if cfg.learn:
+            self._check_watch(state)
+        if succ >= cfg.success_streak:
+            state.done, state.stop_reason = True, f"{succ} successes in a row"
+        elif self._reached_target(state):
+            state.done = True
+            state.stop_reason = (f"own success rate {self._plain_rate(state, cfg.target_window):.2f} over the last "
+                                 f"{cfg.target_window} plain trials")
+        elif self._constant_failure(state):
+            self._repair(state)
+        if not state.done and cfg.learn and (state.watch is None or not cfg.exam) \
+                and state.trial - state.last_refit_trial - 1 >= cfg.refit_every \
+                and cfg.max_trials - state.trial >= self._watch_trials():
+            self._refit(state)
 
     # -- learning from practice ----------------------------------------------------------------------
     def _explorer(self, executor: Executor) -> Executor:
@@ -538,14 +576,11 @@ class Practice:
         regions = self.model.regions()
         scorer = regions.scores if regions is not None else None
         names = tuple(regions.input_names) if regions is not None else ()
-        leave = None
-        if regions is not None:
-            self.learners.include_own_stays(list(kept.values()))
-            leave = {p: float(expit(z)) for p, z in self.learners.leave_floors().items()}   # no overflow at -inf
+        leave = self.learners.include_own_stays(list(kept.values())) if regions is not None else None
 
         def diagnosis(net: APN, trials: list[int]) -> Any:
             ok = [t["fired"] for t in state.trials if t["success"] and t["trial"] in set(trials)]
-            return diagnose(net, [kept[k] for k in trials if k in kept], scorer, names, leave_scores=leave,
+            return diagnose(net, [kept[k] for k in trials if k in kept], scorer, names, leave_below=leave,
                             mentor=self.learners.mentor(net), succeeded_fired=ok)
 
         last = max((r["after_trial"] for r in state.revisions), default=-1)
@@ -582,13 +617,6 @@ class Practice:
                         "after_trial": state.trial - 1, "visited": sorted(d.visited),
                         "failed": list(state.failed_since_repair)}
         self._watch(state, first, self.model.version)
-        ops = {r.operator for r in fix.revisions}
-        if ops == {"set_lambda"}:
-            state.lambda_exhausted = sorted(set(state.lambda_exhausted) | {fix.revisions[0].target}) \
-                if any(r["operator"] == "set_lambda" and r["target"] == fix.revisions[0].target
-                       for r in state.revisions[:-1]) else state.lambda_exhausted
-        else:
-            state.lambda_exhausted = []
         state.failed_since_repair = []
 
 

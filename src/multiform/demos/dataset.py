@@ -90,30 +90,8 @@ def write_dataset(path: str | os.PathLike, episodes: Sequence[Episode], skill: s
             data.attrs["transition_names"] = json.dumps(tag_names)
             names = {"success": [], "failure": []}
             for i, ep in enumerate(episodes):
-                name = f"demo_{i}"
-                g = data.create_group(name)
-                n = ep.num_samples
-                g.attrs["num_samples"] = n
-                g.attrs["seed"] = int(ep.seed)
-                g.attrs["reset_options"] = json.dumps(ep.reset_options, default=json_default)
-                g.attrs["outcome"] = ep.outcome
-                g.attrs["mentor"] = mentor
-                _write_obs(g, ep, np.dtype(obs_dtype))
-                _array(g, "actions", np.asarray(ep.actions, dtype=np.float64) / scale)
-                rewards = np.zeros(n, dtype=np.float64)
-                dones = np.zeros(n, dtype=np.uint8)
-                if n:
-                    dones[-1] = 1
-                    rewards[-1] = float(ep.outcome == "success")
-                _array(g, "rewards", rewards)
-                _array(g, "dones", dones)
-                tags = np.asarray(ep.transitions)
-                codes = np.zeros(n, dtype=code_dtype)
-                for t in np.unique(tags):
-                    codes[tags == t] = code[str(t)]
-                _array(g, "transition", codes)
-                g.create_dataset("labels", data=labels_array(ep.labels))
-                names["success" if ep.outcome == "success" else "failure"].append(name)
+                _write_demo(data.create_group(f"demo_{i}"), ep, scale, code, code_dtype, np.dtype(obs_dtype), mentor)
+                names["success" if ep.outcome == "success" else "failure"].append(f"demo_{i}")
             mask = f.create_group("mask")
             for key, vals in names.items():
                 mask.create_dataset(key, data=np.asarray(vals, dtype="S32"))
@@ -126,6 +104,33 @@ def action_scale(actions: np.ndarray) -> np.ndarray:
     peak = np.max(np.abs(actions), axis=0) if len(actions) else np.zeros(actions.shape[1:])
     exp = np.ceil(np.log2(np.where(peak > 0, peak, 1.0)))
     return np.ldexp(1.0, exp.astype(int))
+
+
+def _write_demo(g: h5py.Group, ep: Episode, scale: np.ndarray, code: dict[str, int], code_dtype: type,
+                obs_dtype: np.dtype, mentor: str) -> None:
+    """One episode's group: its attributes, observations, scaled actions, robomimic's rewards and
+    dones, transition codes and labels."""
+    n = ep.num_samples
+    g.attrs["num_samples"] = n
+    g.attrs["seed"] = int(ep.seed)
+    g.attrs["reset_options"] = json.dumps(ep.reset_options, default=json_default)
+    g.attrs["outcome"] = ep.outcome
+    g.attrs["mentor"] = mentor
+    _write_obs(g, ep, obs_dtype)
+    _array(g, "actions", np.asarray(ep.actions, dtype=np.float64) / scale)
+    rewards = np.zeros(n, dtype=np.float64)
+    dones = np.zeros(n, dtype=np.uint8)
+    if n:
+        dones[-1] = 1
+        rewards[-1] = float(ep.outcome == "success")
+    _array(g, "rewards", rewards)
+    _array(g, "dones", dones)
+    tags = np.asarray(ep.transitions)
+    codes = np.zeros(n, dtype=code_dtype)
+    for t in np.unique(tags):
+        codes[tags == t] = code[str(t)]
+    _array(g, "transition", codes)
+    g.create_dataset("labels", data=labels_array(ep.labels))
 
 
 def _array(g: h5py.Group, name: str, arr: np.ndarray) -> h5py.Dataset:
@@ -290,14 +295,8 @@ def _str(v: Any) -> str:
     return v.decode() if isinstance(v, bytes) else str(v)
 
 
-def _read_demo(g: h5py.Group, name: str, obs_names: tuple[str, ...], cmd_names: tuple[str, ...], dt: float,
-               file: str, scale: np.ndarray, tag_names: list[str] | None) -> Episode:
-    def bad(field: str, msg: str) -> InvalidInput:
-        return InvalidInput(msg, file=file, element=f"data/{name}/{field}")
-
-    if "num_samples" not in g.attrs:
-        raise bad("num_samples", "missing attribute")
-    n = int(g.attrs["num_samples"])
+def _read_obs(g: h5py.Group, n: int, obs_names: tuple[str, ...], shape: tuple[int, ...], bad) -> np.ndarray:
+    """A demo's observations (n, variables) from one dataset of ``shape`` per variable in ``obs/``."""
     if "obs" not in g:
         raise bad("obs", "missing group")
     cols = []
@@ -305,7 +304,6 @@ def _read_demo(g: h5py.Group, name: str, obs_names: tuple[str, ...], cmd_names: 
         if key not in g["obs"]:
             raise bad(f"obs/{key}", "missing dataset")
         ds = g["obs"][key]
-        shape = (n,) if tag_names is None else (n, 1)
         if ds.shape != shape:
             raise bad(f"obs/{key}", f"shape {ds.shape}, expected {shape} from num_samples")
         if ds.dtype.kind != "f":
@@ -315,7 +313,18 @@ def _read_demo(g: h5py.Group, name: str, obs_names: tuple[str, ...], cmd_names: 
             k = int(np.flatnonzero(~np.isfinite(col))[0])
             raise bad(f"obs/{key}", f"non-finite value at sample {k}")
         cols.append(col)
-    obs = np.stack(cols, axis=1) if cols else np.zeros((n, 0))
+    return np.stack(cols, axis=1) if cols else np.zeros((n, 0))
+
+
+def _read_demo(g: h5py.Group, name: str, obs_names: tuple[str, ...], cmd_names: tuple[str, ...], dt: float,
+               file: str, scale: np.ndarray, tag_names: list[str] | None) -> Episode:
+    def bad(field: str, msg: str) -> InvalidInput:
+        return InvalidInput(msg, file=file, element=f"data/{name}/{field}")
+
+    if "num_samples" not in g.attrs:
+        raise bad("num_samples", "missing attribute")
+    n = int(g.attrs["num_samples"])
+    obs = _read_obs(g, n, obs_names, (n,) if tag_names is None else (n, 1), bad)
     for field in ("actions", "dones", "transition", "labels"):
         if field not in g:
             raise bad(field, "missing dataset")

@@ -400,17 +400,10 @@ def label_session(model_dir: str | os.PathLike, source: str | os.PathLike, label
             stack.callback(window.close)
         for i, seg in enumerate(segments):
             if plot_dir is not None:
-                plot_dir.mkdir(parents=True, exist_ok=True)
-                out = plot_dir / plot_name(i, seg)
-                plot_segment(seg).savefig(out)
-                result.plots.append(out)
+                result.plots.append(_save_plot(plot_dir, i, seg))
             if window is not None:
                 window.show(seg)
-            prompt = f"[{i + 1}/{len(segments)}] {seg.describe()} — s/f/k/q? "
-            key = read_key(prompt)
-            while key and key not in KEYS:
-                log(f"  keys: {KEY_HELP}")
-                key = read_key(prompt)
+            key = _ask(read_key, f"[{i + 1}/{len(segments)}] {seg.describe()} — s/f/k/q? ", log)
             if key in ("", "q"):
                 result.quit = key == "q"
                 result.unlabelled = len(segments) - i
@@ -427,6 +420,24 @@ def label_session(model_dir: str | os.PathLike, source: str | os.PathLike, label
         labelled = list(dict.fromkeys(r.place for r in result.records))
         result.refit = refit_judges(model, labelled, {s.source: s.episode for s in sources}, labeller, seed=seed)
     return result
+
+
+def _save_plot(plot_dir: Path, i: int, seg: SegmentToLabel) -> Path:
+    """Segment ``i``'s plot, saved in ``plot_dir``."""
+    plot_dir.mkdir(parents=True, exist_ok=True)
+    out = plot_dir / plot_name(i, seg)
+    plot_segment(seg).savefig(out)
+    return out
+
+
+def _ask(read_key: KeyReader, prompt: str, log: Callable[[str], None]) -> str:
+    """The person's key for one segment: asked again, with the keys' help, until it is one of them
+    (or nothing: the input ended)."""
+    key = read_key(prompt)
+    while key and key not in KEYS:
+        log(f"  keys: {KEY_HELP}")
+        key = read_key(prompt)
+    return key
 
 
 def refit_judges(model: SkillModel, places: Sequence[str], episodes: Mapping[str, Episode], labeller: str = "",

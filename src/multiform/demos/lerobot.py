@@ -93,9 +93,25 @@ def write_lerobot(out: str | os.PathLike, episodes: Sequence[Episode], skill: st
         raise InvalidInput(f"LeRobot needs a whole number of frames per second; dt = {first.dt}", file=str(out))
     fps = int(round(fps))
     subtasks = sorted({str(t) for ep in episodes for t in np.unique(ep.transitions)})
-    sub_index = {t: k for k, t in enumerate(subtasks)}
     task = task or f"{skill}: the skill as the mentor demonstrated it"
-    features = {
+    features = _features(first)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        total = _write_frames(tmp, out, episodes, features, {t: k for k, t in enumerate(subtasks)}, task, pa, pq)
+        _write_meta(tmp, total, len(episodes), features, task, subtasks, fps, first.dt, skill, env_name, env_kwargs)
+        if out.exists():
+            out.rmdir()
+        os.replace(tmp, out)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp)
+    return out
+
+
+def _features(first: Episode) -> dict[str, Any]:
+    """The dataset's features (``info.json``), in the order of the data files' columns."""
+    return {
         "observation.state": _feature("float64", len(first.observation_names), first.observation_names),
         "action": _feature("float64", len(first.command_names), first.command_names),
         "subtask_index": _feature("int64", 1),
@@ -109,74 +125,84 @@ def write_lerobot(out: str | os.PathLike, episodes: Sequence[Episode], skill: st
         "index": _feature("int64", 1),
         "task_index": _feature("int64", 1),
     }
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
-        rows, index, file_index, file_bytes = [], 0, 0, 0
-        ep_rows: list[dict[str, Any]] = []
-        states, actions = [], []
-        for e, ep in enumerate(episodes):
-            if ep.observation_names != first.observation_names or ep.command_names != first.command_names:
-                raise InvalidInput("episodes disagree on observation or command names", file=str(out),
-                                   element=f"episode {e}")
-            n = ep.num_samples
-            last = np.zeros(n, dtype=bool)
-            last[-1:] = True
-            ok = ep.outcome == "success"
-            table = {
-                "observation.state": ep.obs.astype(np.float64), "action": ep.actions.astype(np.float64),
-                "subtask_index": np.array([sub_index[str(t)] for t in ep.transitions], dtype=np.int64),
-                "segment.success": _segment_labels(ep),
-                "next.reward": (last & ok).astype(np.float32), "next.done": last, "next.success": last & ok,
-                "timestamp": (np.arange(n) * first.dt).astype(np.float32),
-                "frame_index": np.arange(n, dtype=np.int64), "episode_index": np.full(n, e, dtype=np.int64),
-                "index": np.arange(index, index + n, dtype=np.int64), "task_index": np.zeros(n, dtype=np.int64),
-            }
-            size = sum(v.nbytes for v in table.values())
-            if rows and file_bytes + size > FILE_MB * 2**20:
-                _write_data(tmp, rows, features, file_index, pa, pq)
-                rows, file_index, file_bytes = [], file_index + 1, 0
-            rows.append(table)
-            file_bytes += size
-            states.append(table["observation.state"])
-            actions.append(table["action"])
-            ep_rows.append({
-                "episode_index": e, "tasks": [task], "length": n,
-                "data/chunk_index": file_index // CHUNKS_SIZE, "data/file_index": file_index % CHUNKS_SIZE,
-                "dataset_from_index": index, "dataset_to_index": index + n,
-                "meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0,
-                "multiform/outcome": ep.outcome, "multiform/seed": int(ep.seed),
-                "multiform/reset_options": json.dumps(ep.reset_options, default=json_default),
-                "multiform/labels": json.dumps([[lab.start, lab.end, lab.transition, bool(lab.success),
-                                                 lab.labeller] for lab in ep.labels]),
-            })
-            index += n
-        _write_data(tmp, rows, features, file_index, pa, pq)
-        path = tmp / EPISODES_PATH.format(chunk_index=0, file_index=0)
-        path.parent.mkdir(parents=True)
-        pq.write_table(pa.Table.from_pylist(ep_rows), path)
-        import pandas as pd
-        pd.DataFrame({"task_index": [0]}, index=pd.Index([task], name="task")).to_parquet(tmp / "meta/tasks.parquet")
-        pd.DataFrame({"subtask_index": list(range(len(subtasks)))},
-                     index=pd.Index(subtasks, name="subtask")).to_parquet(tmp / "meta/subtasks.parquet")
-        stats = {"observation.state": _stats(np.concatenate(states)), "action": _stats(np.concatenate(actions))}
-        (tmp / "meta/stats.json").write_text(json.dumps(stats, indent=2))
-        info = {
-            "codebase_version": CODEBASE_VERSION, "robot_type": env_name, "total_episodes": len(episodes),
-            "total_frames": index, "total_tasks": 1, "chunks_size": CHUNKS_SIZE, "data_files_size_in_mb": FILE_MB,
-            "video_files_size_in_mb": 200, "fps": fps, "splits": {"train": f"0:{len(episodes)}"},
-            "data_path": DATA_PATH, "video_path": None, "features": features,
-            "multiform": {"skill": skill, "env_args": {"env_name": env_name, "env_kwargs": env_kwargs or {}},
-                          "dt": first.dt},
-        }
-        (tmp / "meta/info.json").write_text(json.dumps(info, indent=4))
-        if out.exists():
-            out.rmdir()
-        os.replace(tmp, out)
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp)
-    return out
+
+
+def _frame_table(ep: Episode, e: int, index: int, sub_index: dict[str, int], dt: float) -> dict[str, np.ndarray]:
+    """Episode ``e``'s frames, column by column; its first frame is the dataset's frame ``index``."""
+    n = ep.num_samples
+    last = np.zeros(n, dtype=bool)
+    last[-1:] = True
+    ok = ep.outcome == "success"
+    return {
+        "observation.state": ep.obs.astype(np.float64), "action": ep.actions.astype(np.float64),
+        "subtask_index": np.array([sub_index[str(t)] for t in ep.transitions], dtype=np.int64),
+        "segment.success": _segment_labels(ep),
+        "next.reward": (last & ok).astype(np.float32), "next.done": last, "next.success": last & ok,
+        "timestamp": (np.arange(n) * dt).astype(np.float32),
+        "frame_index": np.arange(n, dtype=np.int64), "episode_index": np.full(n, e, dtype=np.int64),
+        "index": np.arange(index, index + n, dtype=np.int64), "task_index": np.zeros(n, dtype=np.int64),
+    }
+
+
+def _write_frames(tmp: Path, out: Path, episodes: Sequence[Episode], features: dict[str, Any],
+                  sub_index: dict[str, int], task: str, pa, pq) -> int:
+    """The data files (a new one each ``FILE_MB``), the episodes' rows and the stats of state and
+    action, into ``tmp``; returns the number of frames."""
+    first = episodes[0]
+    rows, index, file_index, file_bytes = [], 0, 0, 0
+    ep_rows: list[dict[str, Any]] = []
+    states, actions = [], []
+    for e, ep in enumerate(episodes):
+        if ep.observation_names != first.observation_names or ep.command_names != first.command_names:
+            raise InvalidInput("episodes disagree on observation or command names", file=str(out),
+                               element=f"episode {e}")
+        n = ep.num_samples
+        table = _frame_table(ep, e, index, sub_index, first.dt)
+        size = sum(v.nbytes for v in table.values())
+        if rows and file_bytes + size > FILE_MB * 2**20:
+            _write_data(tmp, rows, features, file_index, pa, pq)
+            rows, file_index, file_bytes = [], file_index + 1, 0
+        rows.append(table)
+        file_bytes += size
+        states.append(table["observation.state"])
+        actions.append(table["action"])
+        ep_rows.append({
+            "episode_index": e, "tasks": [task], "length": n,
+            "data/chunk_index": file_index // CHUNKS_SIZE, "data/file_index": file_index % CHUNKS_SIZE,
+            "dataset_from_index": index, "dataset_to_index": index + n,
+            "meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0,
+            "multiform/outcome": ep.outcome, "multiform/seed": int(ep.seed),
+            "multiform/reset_options": json.dumps(ep.reset_options, default=json_default),
+            "multiform/labels": json.dumps([[lab.start, lab.end, lab.transition, bool(lab.success),
+                                             lab.labeller] for lab in ep.labels]),
+        })
+        index += n
+    _write_data(tmp, rows, features, file_index, pa, pq)
+    path = tmp / EPISODES_PATH.format(chunk_index=0, file_index=0)
+    path.parent.mkdir(parents=True)
+    pq.write_table(pa.Table.from_pylist(ep_rows), path)
+    stats = {"observation.state": _stats(np.concatenate(states)), "action": _stats(np.concatenate(actions))}
+    (tmp / "meta/stats.json").write_text(json.dumps(stats, indent=2))
+    return index
+
+
+def _write_meta(tmp: Path, total_frames: int, total_episodes: int, features: dict[str, Any], task: str,
+                subtasks: list[str], fps: int, dt: float, skill: str, env_name: str,
+                env_kwargs: dict[str, Any] | None) -> None:
+    """``meta/tasks.parquet``, ``meta/subtasks.parquet`` and ``meta/info.json``."""
+    import pandas as pd
+    pd.DataFrame({"task_index": [0]}, index=pd.Index([task], name="task")).to_parquet(tmp / "meta/tasks.parquet")
+    pd.DataFrame({"subtask_index": list(range(len(subtasks)))},
+                 index=pd.Index(subtasks, name="subtask")).to_parquet(tmp / "meta/subtasks.parquet")
+    info = {
+        "codebase_version": CODEBASE_VERSION, "robot_type": env_name, "total_episodes": total_episodes,
+        "total_frames": total_frames, "total_tasks": 1, "chunks_size": CHUNKS_SIZE, "data_files_size_in_mb": FILE_MB,
+        "video_files_size_in_mb": 200, "fps": fps, "splits": {"train": f"0:{total_episodes}"},
+        "data_path": DATA_PATH, "video_path": None, "features": features,
+        "multiform": {"skill": skill, "env_args": {"env_name": env_name, "env_kwargs": env_kwargs or {}},
+                      "dt": dt},
+    }
+    (tmp / "meta/info.json").write_text(json.dumps(info, indent=4))
 
 
 def _write_data(root: Path, rows: list[dict[str, np.ndarray]], features: dict[str, Any], file_index: int,
@@ -206,6 +232,33 @@ def read_lerobot(root: str | os.PathLike, state_names: Sequence[str] | None = No
     """
     pa, pq = _pa()
     root = Path(root)
+    info, fps = _read_info(root)
+    features = info["features"]
+    names = {what: _vector_names(features, key, given, what, str(root / "meta/info.json"))
+             for what, key, given in (("state", state_key, state_names), ("action", action_key, command_names))}
+    cat = _read_frames(root, features, (state_key, action_key), pa, pq)
+    for c, what in ((state_key, "state"), (action_key, "action")):
+        dim = len(names[what])
+        if cat[c].shape[1] != dim:
+            raise InvalidInput(f"column {c!r} has {cat[c].shape[1]} entries, info.json says {dim}", file=str(root))
+        bad = ~np.isfinite(cat[c]).all(axis=1)
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise InvalidInput(f"column {c!r}: non-finite value in episode {int(cat['episode_index'][k])}, "
+                               f"frame {int(cat['frame_index'][k])}", file=str(root))
+    subtask_names = _subtask_names(root, pq) if "subtask_index" in cat else None
+    ep_meta = _episode_meta(root, pq)
+    episodes = []
+    for e in np.unique(cat["episode_index"]):
+        sel = np.flatnonzero(cat["episode_index"] == e)
+        sel = sel[np.argsort(cat["frame_index"][sel], kind="stable")]
+        episodes.append(_episode(root, int(e), sel, cat, state_key, action_key, names, 1.0 / float(fps),
+                                 subtask_names, transition, ep_meta.get(int(e), {})))
+    return episodes, info.get("multiform") if isinstance(info.get("multiform"), dict) else {}
+
+
+def _read_info(root: Path) -> tuple[dict[str, Any], float]:
+    """``meta/info.json`` of a v3 dataset with a ``features`` mapping, and its fps."""
     file = str(root / "meta/info.json")
     try:
         info = json.loads((root / "meta/info.json").read_text(encoding="utf-8"))
@@ -218,33 +271,42 @@ def read_lerobot(root: str | os.PathLike, state_names: Sequence[str] | None = No
     version = str(info.get("codebase_version", ""))
     if not version.startswith("v3"):
         raise InvalidInput(f"codebase_version {version!r}; this reader takes LeRobot v3 datasets", file=file)
-    features = info.get("features")
-    if not isinstance(features, dict):
+    if not isinstance(info.get("features"), dict):
         raise InvalidInput("no 'features' mapping", file=file)
     fps = info.get("fps")
     if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not math.isfinite(fps) or fps <= 0:
         raise InvalidInput(f"fps must be a positive number, got {fps!r}", file=file, element="fps")
-    names = {}
-    for what, key, given in (("state", state_key, state_names), ("action", action_key, command_names)):
-        ft = features.get(key)
-        if not isinstance(ft, dict) or not isinstance(ft.get("shape"), list) or len(ft["shape"]) != 1:
-            raise InvalidInput(f"no 1-D {what} feature {key!r} (features: {', '.join(features)})", file=file)
-        dim = ft["shape"][0]
-        own = ft.get("names")
-        if isinstance(own, dict):                         # LeRobot also writes {"motors": [...]}
-            own = next(iter(own.values()), None)
-        chosen = list(given) if given else own
-        if not chosen or len(chosen) != dim or not all(isinstance(n, str) and NAME.match(n) for n in chosen):
-            raise InvalidInput(f"{what} feature {key!r} has {dim} entries; name them "
-                               f"({'--variables' if what == 'state' else '--commands'} a,b,...) with valid names, "
-                               f"got {chosen!r}", file=file)
-        if len(set(chosen)) != len(chosen):
-            raise InvalidInput(f"duplicate {what} names {chosen!r}", file=file)
-        names[what] = tuple(chosen)
+    return info, fps
+
+
+def _vector_names(features: dict[str, Any], key: str, given: Sequence[str] | None, what: str,
+                  file: str) -> tuple[str, ...]:
+    """The entry names of the 1-D ``what`` ("state" or "action") feature ``key``: ``given``, else
+    the feature's own."""
+    ft = features.get(key)
+    if not isinstance(ft, dict) or not isinstance(ft.get("shape"), list) or len(ft["shape"]) != 1:
+        raise InvalidInput(f"no 1-D {what} feature {key!r} (features: {', '.join(features)})", file=file)
+    dim = ft["shape"][0]
+    own = ft.get("names")
+    if isinstance(own, dict):                         # LeRobot also writes {"motors": [...]}
+        own = next(iter(own.values()), None)
+    chosen = list(given) if given else own
+    if not chosen or len(chosen) != dim or not all(isinstance(n, str) and NAME.match(n) for n in chosen):
+        raise InvalidInput(f"{what} feature {key!r} has {dim} entries; name them "
+                           f"({'--variables' if what == 'state' else '--commands'} a,b,...) with valid names, "
+                           f"got {chosen!r}", file=file)
+    if len(set(chosen)) != len(chosen):
+        raise InvalidInput(f"duplicate {what} names {chosen!r}", file=file)
+    return tuple(chosen)
+
+
+def _read_frames(root: Path, features: dict[str, Any], vectors: tuple[str, str], pa, pq) -> dict[str, np.ndarray]:
+    """Every data file's frames, concatenated per column: the state and action ``vectors`` as
+    (frames, entries) float64, the indices and optional columns as they are."""
     data_files = sorted((root / "data").glob("chunk-*/file-*.parquet"))
     if not data_files:
         raise InvalidInput("no data/chunk-*/file-*.parquet files", file=str(root))
-    columns = [state_key, action_key, "episode_index", "frame_index"]
+    columns = [*vectors, "episode_index", "frame_index"]
     optional = [c for c in ("subtask_index", "next.success", "segment.success") if c in features]
     frames: dict[str, list[np.ndarray]] = {c: [] for c in columns + optional}
     for path in data_files:
@@ -254,7 +316,7 @@ def read_lerobot(root: str | os.PathLike, state_names: Sequence[str] | None = No
             raise InvalidInput(f"unreadable parquet ({exc})", file=str(path)) from None
         for c in frames:
             col = table.column(c).combine_chunks()
-            if c in (state_key, action_key):
+            if c in vectors:
                 try:
                     flat = col.flatten() if pa.types.is_list(col.type) or pa.types.is_fixed_size_list(col.type) else col
                     arr = np.asarray(flat.to_numpy(zero_copy_only=False), dtype=np.float64).reshape(len(col), -1)
@@ -264,56 +326,42 @@ def read_lerobot(root: str | os.PathLike, state_names: Sequence[str] | None = No
             else:
                 arr = np.asarray(col.to_numpy(zero_copy_only=False))
             frames[c].append(arr)
-    cat = {c: np.concatenate(v) for c, v in frames.items()}
-    for c, what in ((state_key, "state"), (action_key, "action")):
-        dim = len(names[what])
-        if cat[c].shape[1] != dim:
-            raise InvalidInput(f"column {c!r} has {cat[c].shape[1]} entries, info.json says {dim}", file=str(root))
-        bad = ~np.isfinite(cat[c]).all(axis=1)
-        if bad.any():
-            k = int(np.flatnonzero(bad)[0])
-            raise InvalidInput(f"column {c!r}: non-finite value in episode {int(cat['episode_index'][k])}, "
-                               f"frame {int(cat['frame_index'][k])}", file=str(root))
-    subtask_names = None
-    if "subtask_index" in cat:
-        subtask_names = _subtask_names(root, pq)
-    ep_meta = _episode_meta(root, pq)
-    episodes = []
-    dt = 1.0 / float(fps)
-    for e in np.unique(cat["episode_index"]):
-        sel = np.flatnonzero(cat["episode_index"] == e)
-        sel = sel[np.argsort(cat["frame_index"][sel], kind="stable")]
-        where = f"episode {int(e)}"
-        if not np.array_equal(cat["frame_index"][sel], np.arange(len(sel))):
-            raise InvalidInput("frame_index is not 0, 1, 2, ... without gaps", file=str(root), element=where)
-        if subtask_names is not None:
-            codes = cat["subtask_index"][sel].astype(np.int64)
-            if codes.min() < 0 or codes.max() >= len(subtask_names):
-                raise InvalidInput(f"subtask_index {int(codes.max())} has no name in meta/subtasks.parquet",
-                                   file=str(root), element=where)
-            tags = np.asarray(subtask_names, dtype=str)[codes]
-        else:
-            tags = np.full(len(sel), transition)
-        meta = ep_meta.get(int(e), {})
-        ep = Episode(obs=cat[state_key][sel], actions=cat[action_key][sel], transitions=tags,
-                     observation_names=names["state"], command_names=names["action"], dt=dt,
-                     seed=int(meta.get("multiform/seed", int(e)) or 0))
-        if meta.get("multiform/outcome") is not None:
-            ep.outcome = str(meta["multiform/outcome"])
-            ep.reset_options = _loads(meta.get("multiform/reset_options"), {}, root, where)
-            try:
-                ep.labels = [SegmentLabel(int(s), int(t), str(tr), bool(ok), str(who))
-                             for s, t, tr, ok, who in _loads(meta.get("multiform/labels"), [], root, where)]
-            except (TypeError, ValueError):
-                raise InvalidInput("multiform/labels must be [start, end, transition, success, labeller] rows",
-                                   file=str(root), element=where) from None
-            if any(not 0 <= lab.start < lab.end <= len(sel) for lab in ep.labels):
-                raise InvalidInput("a label's segment lies outside the episode", file=str(root), element=where)
-        elif "next.success" in cat:
-            ep.outcome = "success" if bool(cat["next.success"][sel][-1]) else "failure"
-            ep.labels = [SegmentLabel(s, t, tr, ep.outcome == "success", "lerobot") for s, t, tr in ep.segments()]
-        episodes.append(ep)
-    return episodes, info.get("multiform") if isinstance(info.get("multiform"), dict) else {}
+    return {c: np.concatenate(v) for c, v in frames.items()}
+
+
+def _episode(root: Path, e: int, sel: np.ndarray, cat: dict[str, np.ndarray], state_key: str, action_key: str,
+             names: dict[str, tuple[str, ...]], dt: float, subtask_names: list[str] | None, transition: str,
+             meta: dict[str, Any]) -> Episode:
+    """Episode ``e`` from its frames ``sel`` (in frame order), tagged and labelled."""
+    where = f"episode {e}"
+    if not np.array_equal(cat["frame_index"][sel], np.arange(len(sel))):
+        raise InvalidInput("frame_index is not 0, 1, 2, ... without gaps", file=str(root), element=where)
+    if subtask_names is not None:
+        codes = cat["subtask_index"][sel].astype(np.int64)
+        if codes.min() < 0 or codes.max() >= len(subtask_names):
+            raise InvalidInput(f"subtask_index {int(codes.max())} has no name in meta/subtasks.parquet",
+                               file=str(root), element=where)
+        tags = np.asarray(subtask_names, dtype=str)[codes]
+    else:
+        tags = np.full(len(sel), transition)
+    ep = Episode(obs=cat[state_key][sel], actions=cat[action_key][sel], transitions=tags,
+                 observation_names=names["state"], command_names=names["action"], dt=dt,
+                 seed=int(meta.get("multiform/seed", e) or 0))
+    if meta.get("multiform/outcome") is not None:
+        ep.outcome = str(meta["multiform/outcome"])
+        ep.reset_options = _loads(meta.get("multiform/reset_options"), {}, root, where)
+        try:
+            ep.labels = [SegmentLabel(int(s), int(t), str(tr), bool(ok), str(who))
+                         for s, t, tr, ok, who in _loads(meta.get("multiform/labels"), [], root, where)]
+        except (TypeError, ValueError):
+            raise InvalidInput("multiform/labels must be [start, end, transition, success, labeller] rows",
+                               file=str(root), element=where) from None
+        if any(not 0 <= lab.start < lab.end <= len(sel) for lab in ep.labels):
+            raise InvalidInput("a label's segment lies outside the episode", file=str(root), element=where)
+    elif "next.success" in cat:
+        ep.outcome = "success" if bool(cat["next.success"][sel][-1]) else "failure"
+        ep.labels = [SegmentLabel(s, t, tr, ep.outcome == "success", "lerobot") for s, t, tr in ep.segments()]
+    return ep
 
 
 def _subtask_names(root: Path, pq) -> list[str]:

@@ -153,6 +153,8 @@ class NunchakuMentor:
     def finished(self) -> bool:
         return self.done
 
+    # One function on purpose: the mentor's decision procedure, phase by phase as the flip goes; a
+    # phase that ends hands over to the next within the same tick, so the blocks read top to bottom.
     def act(self, obs: np.ndarray, info: dict[str, Any], t: float) -> tuple[np.ndarray, str]:
         """The command for this sample and the transition being executed."""
         p = self.p
@@ -203,10 +205,7 @@ class NunchakuMentor:
             if held and tau > p.rearm:
                 self.events["catch"], self.events["caught"] = t, held
                 self.t_catch = t
-                if held == "b":
-                    self.phase, self.tag = "hold", "t4"
-                else:
-                    self.phase, self.tag = "hold", "t4"
+                self.phase, self.tag = "hold", "t4"          # the wrong rod too: the hold finds out
             elif tau > 1.5 or (not held and max(sc["rod_a"][1], sc["rod_b"][1]) < sc["hand_z_world"] - 0.35):
                 self._give_up("t7", t)
         if self.phase == "hold":

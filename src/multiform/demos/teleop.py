@@ -100,7 +100,6 @@ def teleop(env: gym.Env, seed: int = 0, options: Mapping[str, Any] | None = None
     tag = first_tag if first_tag is not None else tags[0]
     dt = float(base.dt)
     per_frame = max(1, int(round(1.0 / (fps * dt))))
-    frame_dt = per_frame * dt
     max_steps = int(round(max_duration / dt))
 
     pygame.display.init()
@@ -117,51 +116,8 @@ def teleop(env: gym.Env, seed: int = 0, options: Mapping[str, Any] | None = None
         pygame.display.set_caption(window_title)
         font = pygame.font.Font(None, 22)
         inp = _Input(gain, key_accel, dead_zone, axis)
-        obs_rows: list[np.ndarray] = []
-        cmd_rows: list[float] = []
-        tag_rows: list[str] = []
-        snaps: list[tuple[int, np.ndarray]] = []
-        wall0 = time.perf_counter()
-        it = 0
-        running = True
-        while running and len(obs_rows) < max_steps:
-            if script is not None:
-                script("demo", it)
-            for ev in pygame.event.get():
-                if ev.type == pygame.QUIT:
-                    raise TeleopAborted("the teleoperation window was closed")
-                if ev.type == pygame.KEYDOWN:
-                    if ev.key in (pygame.K_ESCAPE, pygame.K_RETURN, pygame.K_q):
-                        running = False
-                    elif pygame.K_0 <= ev.key <= pygame.K_9 and ev.key - pygame.K_0 < len(tags):
-                        tag = tags[ev.key - pygame.K_0]
-                elif ev.type == pygame.JOYBUTTONDOWN and ev.button < len(tags):
-                    tag = tags[ev.button]
-                inp.handle(ev, pygame)
-            if not running:
-                break
-            cmd = inp.command(frame_dt)
-            action = np.array([cmd])
-            done = False
-            for _ in range(per_frame):
-                obs_rows.append(np.asarray(obs, dtype=np.float64))
-                cmd_rows.append(cmd)
-                tag_rows.append(tag)
-                obs, _, terminated, truncated, info = env.step(action)
-                if terminated or truncated or len(obs_rows) >= max_steps:
-                    done = True
-                    break
-            snaps.append((len(obs_rows) - 1, base.data.qpos.copy()))
-            frame = env.render()
-            status = f"t = {len(obs_rows) * dt:5.1f} s   {tag}   command {cmd:+.2f}"
-            _show(pygame, screen, font, frame, status, "arrows / stick: move   0-9: mark step   Esc: end")
-            it += 1
-            if done:
-                break
-            if realtime:
-                lag = wall0 + len(obs_rows) * dt / time_scale - time.perf_counter()
-                if lag > 0:
-                    time.sleep(lag)
+        obs_rows, cmd_rows, tag_rows, snaps, it = _record(pygame, env, screen, font, obs, inp, tags, tag, per_frame,
+                                                          max_steps, realtime, time_scale, script)
         if not obs_rows:
             raise TeleopAborted("the demonstration ended before its first sample")
         episode = Episode(obs=np.asarray(obs_rows), actions=np.asarray(cmd_rows).reshape(-1, 1),
@@ -177,6 +133,70 @@ def teleop(env: gym.Env, seed: int = 0, options: Mapping[str, Any] | None = None
         for js in sticks:
             js.quit()
         pygame.quit()
+
+
+def _record(pygame: Any, env: gym.Env, screen: Any, font: Any, obs: np.ndarray, inp: _Input, tags: tuple[str, ...],
+            tag: str, per_frame: int, max_steps: int, realtime: bool, time_scale: float, script: Script | None
+            ) -> tuple[list[np.ndarray], list[float], list[str], list[tuple[int, np.ndarray]], int]:
+    """The demonstration itself: each frame, read the person's input, step the env ``per_frame``
+    times with their command and show the scene, until they end it, the episode ends or
+    ``max_steps``. Returns the observations, commands and step tags per step, the poses shown
+    (step, qpos) and the number of frames."""
+    base = env.unwrapped
+    dt = float(base.dt)
+    obs_rows: list[np.ndarray] = []
+    cmd_rows: list[float] = []
+    tag_rows: list[str] = []
+    snaps: list[tuple[int, np.ndarray]] = []
+    wall0 = time.perf_counter()
+    it = 0
+    while len(obs_rows) < max_steps:
+        if script is not None:
+            script("demo", it)
+        running, tag = _events(pygame, inp, tags, tag)
+        if not running:
+            break
+        cmd = inp.command(per_frame * dt)
+        action = np.array([cmd])
+        done = False
+        for _ in range(per_frame):
+            obs_rows.append(np.asarray(obs, dtype=np.float64))
+            cmd_rows.append(cmd)
+            tag_rows.append(tag)
+            obs, _, terminated, truncated, info = env.step(action)
+            if terminated or truncated or len(obs_rows) >= max_steps:
+                done = True
+                break
+        snaps.append((len(obs_rows) - 1, base.data.qpos.copy()))
+        frame = env.render()
+        status = f"t = {len(obs_rows) * dt:5.1f} s   {tag}   command {cmd:+.2f}"
+        _show(pygame, screen, font, frame, status, "arrows / stick: move   0-9: mark step   Esc: end")
+        it += 1
+        if done:
+            break
+        if realtime:
+            lag = wall0 + len(obs_rows) * dt / time_scale - time.perf_counter()
+            if lag > 0:
+                time.sleep(lag)
+    return obs_rows, cmd_rows, tag_rows, snaps, it
+
+
+def _events(pygame: Any, inp: _Input, tags: tuple[str, ...], tag: str) -> tuple[bool, str]:
+    """This frame's window events: the person's input, a step marked by a number key or a
+    joystick button. Returns whether the demonstration goes on, and the step tag now."""
+    running = True
+    for ev in pygame.event.get():
+        if ev.type == pygame.QUIT:
+            raise TeleopAborted("the teleoperation window was closed")
+        if ev.type == pygame.KEYDOWN:
+            if ev.key in (pygame.K_ESCAPE, pygame.K_RETURN, pygame.K_q):
+                running = False
+            elif pygame.K_0 <= ev.key <= pygame.K_9 and ev.key - pygame.K_0 < len(tags):
+                tag = tags[ev.key - pygame.K_0]
+        elif ev.type == pygame.JOYBUTTONDOWN and ev.button < len(tags):
+            tag = tags[ev.button]
+        inp.handle(ev, pygame)
+    return running, tag
 
 
 def _show(pygame: Any, screen: Any, font: Any, frame: np.ndarray, line1: str, line2: str) -> None:

@@ -211,7 +211,19 @@ class NunchakuEnv(gym.Env):
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        options = dict(options or {})
+        p = self._draw_params(dict(options or {}))
+        self.params = p
+        self._apply_params(p)
+        self._place(p)
+        obs = self._observe(0.0, 0.0, 0.0, estimate=False)
+        obs = self._settle(obs)
+        self._steps = 0
+        self._flip = {"released": False, "touched": False, "held_b": 0, "done": False}
+        return obs, self._info(False)
+
+    def _draw_params(self, options: dict[str, Any]) -> dict[str, float]:
+        """This episode's parameters: those the reset options fix, the others drawn from ``RANGES``
+        (or nominal without ``randomize``); sets the force sensor's noise (``ft_noise``)."""
         randomize = bool(options.pop("randomize", True))
         self._ft_noise = float(options.pop("ft_noise", 0.05))
         unknown = set(options) - set(RANGES)
@@ -231,8 +243,11 @@ class NunchakuEnv(gym.Env):
         if bad or not (math.isfinite(self._ft_noise) and self._ft_noise >= 0):
             raise ValueError(f"reset options out of range: {bad or {'ft_noise': self._ft_noise}} (all finite; rod mass, "
                              "rod length and friction above 0; chain damping and ft_noise at least 0)")
-        self.params = p
-        self._apply_params(p)
+        return p
+
+    def _place(self, p: dict[str, float]) -> None:
+        """The hand where ``p`` puts it, rod A held on the palm (welded), rod B hanging at ``swing``;
+        the grip and the estimator reset."""
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         q0 = p["hand_q"]
@@ -264,9 +279,11 @@ class NunchakuEnv(gym.Env):
         self.estimator.reset(pivot=(0.065 + p["grip_offset"], HELD_Z), held_com=(cx, HELD_Z),
                              angle=0.0, angle_std=0.25)
         self._phi, self._omega, self._load = 0.0, 0.0, 0.0
-        obs = self._observe(0.0, 0.0, 0.0, estimate=False)
-        # The robot has just picked the nunchaku up and holds still for a moment; it weighs it (the
-        # wrist's vertical load minus the hand's own weight) so the estimator's masses fit.
+
+    def _settle(self, obs: np.ndarray) -> np.ndarray:
+        """The robot has just picked the nunchaku up and holds still for a moment; it weighs it (the
+        wrist's vertical load minus the hand's own weight) so the estimator's masses fit. Returns
+        the observation after."""
         n_settle = int(round(self.settle / self.dt))
         load = 0.0
         hold = np.array([0.0, 0.0, 0.0, 1.0])
@@ -278,9 +295,7 @@ class NunchakuEnv(gym.Env):
         if n_settle:
             hand_weight = self.model.body_mass[self._hand] * 9.81
             self.estimator.weigh(load / n_settle - hand_weight)
-        self._steps = 0
-        self._flip = {"released": False, "touched": False, "held_b": 0, "done": False}
-        return obs, self._info(False)
+        return obs
 
     def _apply_params(self, p: dict[str, float]) -> None:
         m, nom = self.model, self._nominal

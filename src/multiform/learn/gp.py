@@ -16,8 +16,9 @@ the variance ``k(x*, x*) − k*ᵀ K⁻¹ k*`` (eq. 6), with ``K`` the kernel ma
   our own analytic gradient (scikit-learn's builds an n×n×(d+2) gradient tensor and took 20–27 s
   at n = 2,000 here), on a random subset of ``n_hyper`` points: each evaluation costs O(n³) while
   the optimum barely moves beyond ~1,000 points. Restarts (``n_restarts`` random starts besides
-  the default one) run on a 300-point probe subset; the best is refined on the ``n_hyper`` subset;
-* the posterior is then solved on the full set. Up to ``sparse_threshold`` points it is exact
+  the default one) run on a 300-point probe subset; the best is refined on the ``n_hyper`` subset
+  (:mod:`.gp_hyper`);
+* the posterior is then solved on the full set (:mod:`.gp_posterior`). Up to ``sparse_threshold`` points it is exact
   (``α = K⁻¹y`` and the Cholesky factor); above, a sparse FITC posterior on ``n_inducing`` k-means
   centres replaces it (:mod:`multiform.learn.sparse_gp`). FITC rather than DTC: its diagonal
   correction ``Λ = diag(K − Q) + σ²`` treats training points the inducing set represents poorly as
@@ -56,6 +57,10 @@ off by at most ``(|a| + 8)·2⁻²⁴`` relatively, but a low-noise posterior's 
 at 1,250 probe states around its points and keeps float64 unless it is ≤ ``FAST_EXP_PROBE_TOL``
 (2e-4 of ``y_scale_``); tests hold the admitted path to ``FAST_EXP_TOL`` (1e-3) at any state.
 The variance's kernel vector is always float64 (:meth:`predict_one_var`).
+
+The class itself is the estimator and its prediction paths; the hyperparameter search
+(:mod:`.gp_hyper`), the posterior (:mod:`.gp_posterior`) and the file format (:mod:`.gp_store`)
+are modules of their own.
 """
 
 from __future__ import annotations
@@ -67,22 +72,18 @@ from typing import Any
 
 import numpy as np
 from scipy.linalg import blas, lapack
-from scipy.optimize import minimize
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, check_X_y
 
-from ..errors import InvalidInput, Problem
 from ..io import load_npz, save_npz
 from .compiled import gp_mean_one
-from .sparse_gp import SPARSE_METHODS, cholesky_jitter, se_kernel, select_inducing, sparse_posterior
+from .gp_hyper import neg_log_marginal_likelihood, optimise_hyperparameters  # noqa: F401  (also read from here)
+from .gp_posterior import FITTED_ARRAYS, posterior_modes, solve_posterior
+from .gp_store import KIND, VERSION, law_from_arrays, law_to_arrays  # noqa: F401  (also read from here)
+from .sparse_gp import SPARSE_METHODS, se_kernel
 
-KIND = "gp_law"
-VERSION = 2                     # 2: linear_coef (the mean function) stored
-MODES = ("exact", "sparse")
 MEANS = ("constant", "linear")
 _BATCH = 1024
-_PROBE = 300
-_LOG_2PI = float(np.log(2.0 * np.pi))
 _mul, _sub, _exp, _dot = np.multiply, np.subtract, np.exp, np.dot
 # Bound on the relative error of one kernel value on the float32 exponential path: the exponent
 # a is rounded to float32 (|a|·2⁻²⁴) and a float32 exp (libm's expf, numpy's SIMD loop) is within
@@ -96,51 +97,6 @@ COMPILED_MEAN_MAX_POINTS = 1000
 FAST_EXP_ULP = 8.0
 FAST_EXP_TOL = 1e-3
 FAST_EXP_PROBE_TOL = 2e-4
-# log-space bounds (standardised inputs and outputs)
-_BOUNDS_LENGTH = (np.log(1e-2), np.log(1e3))
-_BOUNDS_SF = (np.log(1e-2), np.log(1e2))
-_BOUNDS_NOISE = (np.log(1e-3), np.log(1e1))
-
-
-def neg_log_marginal_likelihood(theta: np.ndarray, X: np.ndarray, Y: np.ndarray, ard: bool
-                                ) -> tuple[float, np.ndarray]:
-    """Negative log marginal likelihood of a shared SE kernel over all columns of ``Y`` and its
-    gradient in ``theta = [log l (d or 1), log σf, log σn]``.
-
-    ``X`` (n, d) and ``Y`` (n, p) are standardised. With ``W = ααᵀ − p K⁻¹`` and ``G = W ∘ K_f``,
-    the gradient of the log likelihood is ``½ tr(W ∂K)``: ``Σ_i g_i z_id² − z_dᵀ G z_d`` for
-    ``log l_d`` (``g = G 1``, ``z = x / l``), ``Σ G`` for ``log σf`` and ``σn² tr W`` for ``log σn``.
-    """
-    n, d = X.shape
-    p = Y.shape[1]
-    ell = np.exp(theta[:-2])
-    sf2 = float(np.exp(2.0 * theta[-2]))
-    sn2 = float(np.exp(2.0 * theta[-1]))
-    Z = X / ell
-    Kf = se_kernel(Z, Z, sf2)
-    K = Kf.copy()
-    K.flat[::n + 1] += sn2
-    L, info = lapack.dpotrf(K, lower=1, clean=1, overwrite_a=1)
-    if info != 0:
-        return 1e25, np.zeros_like(theta)
-    alpha, _ = lapack.dpotrs(L, Y, lower=1)
-    nlml = 0.5 * float(np.sum(Y * alpha)) + p * float(np.sum(np.log(np.diag(L)))) + 0.5 * n * p * _LOG_2PI
-    Kinv, info = lapack.dpotri(L, lower=1, overwrite_c=1)
-    if info != 0:
-        return 1e25, np.zeros_like(theta)
-    Kinv = np.tril(Kinv)
-    Kinv += np.tril(Kinv, -1).T
-    W = alpha @ alpha.T
-    W -= p * Kinv
-    trW = float(np.trace(W))
-    G = W
-    G *= Kf
-    g = G.sum(axis=1)
-    grad_ell = g @ (Z * Z) - np.einsum("ij,ij->j", Z, G @ Z)
-    if not ard:
-        grad_ell = np.array([grad_ell.sum()])
-    grad = np.concatenate([grad_ell, [float(g.sum()), sn2 * trW]])
-    return nlml, -grad
 
 
 class GPLaw(BaseEstimator, RegressorMixin):
@@ -215,6 +171,36 @@ class GPLaw(BaseEstimator, RegressorMixin):
 
     def _fit(self, X: np.ndarray, y: np.ndarray, theta: Sequence[float] | np.ndarray | None) -> GPLaw:
         t0 = time.perf_counter()
+        Xs, Ys = self._standardise(X, y)
+        n, d = X.shape
+        if theta is None:
+            theta, lml = optimise_hyperparameters(Xs, Ys, np.random.default_rng(self.random_state), self.ard,
+                                                  self.n_hyper, self.n_restarts, self.max_iter)
+        else:
+            theta = np.asarray(theta, dtype=np.float64).reshape(-1)
+            n_ell = d if self.ard else 1
+            if theta.shape != (n_ell + 2,):
+                raise ValueError(f"theta must have {n_ell + 2} entries (log length scales, log σf, log σn)")
+            lml = None
+        ell = np.exp(theta[:-2])
+        self.length_scale_ = np.broadcast_to(ell, (d,)).astype(np.float64)
+        self.sigma_f_ = float(np.exp(theta[-2]))
+        self.noise_ = float(np.exp(theta[-1]))
+        self.log_marginal_likelihood_ = lml
+        self.n_hyper_used_ = min(n, self.n_hyper) if lml is not None else 0
+        self.mode_, self.var_mode_ = posterior_modes(n, self.sparse_threshold, self.exact_var_max_n)
+        posterior = solve_posterior(Xs / self.length_scale_, Ys, self.sigma_f_ ** 2, self.noise_ ** 2, self.mode_,
+                                    self.var_mode_, self.n_inducing, self.sparse_method, self.random_state)
+        for key, attr in FITTED_ARRAYS.items():
+            setattr(self, attr, posterior[key])
+        self.heldout_nrmse_ = None
+        self.fit_seconds_ = time.perf_counter() - t0
+        self._prepare()
+        return self
+
+    def _standardise(self, X: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Learn the standardisation of inputs and outputs (and with ``mean="linear"`` the linear
+        mean); returns the standardised inputs and the standardised outputs the GP is to explain."""
         self.y_1d_ = y.ndim == 1
         Y = y.reshape(len(y), -1)
         n, d = X.shape
@@ -232,73 +218,7 @@ class GPLaw(BaseEstimator, RegressorMixin):
             A = np.c_[Xs, np.ones(n)]
             self.linear_coef_ = np.linalg.solve(A.T @ A + 1e-6 * n * np.eye(d + 1), A.T @ Ys)
             Ys = Ys - A @ self.linear_coef_
-        rng = np.random.default_rng(self.random_state)
-        if theta is None:
-            theta, lml = self._optimise(Xs, Ys, rng)
-        else:
-            theta = np.asarray(theta, dtype=np.float64).reshape(-1)
-            n_ell = d if self.ard else 1
-            if theta.shape != (n_ell + 2,):
-                raise ValueError(f"theta must have {n_ell + 2} entries (log length scales, log σf, log σn)")
-            lml = None
-        ell = np.exp(theta[:-2])
-        self.length_scale_ = np.broadcast_to(ell, (d,)).astype(np.float64)
-        self.sigma_f_ = float(np.exp(theta[-2]))
-        self.noise_ = float(np.exp(theta[-1]))
-        self.log_marginal_likelihood_ = lml
-        self.n_hyper_used_ = min(n, self.n_hyper) if lml is not None else 0
-        Z = Xs / self.length_scale_
-        sf2, sn2 = self.sigma_f_ ** 2, self.noise_ ** 2
-        self.mode_ = "sparse" if self.sparse_threshold is not None and n > self.sparse_threshold else "exact"
-        exact_var = self.exact_var_max_n is None or n <= self.exact_var_max_n
-        self.var_mode_ = "exact" if self.mode_ == "exact" and exact_var else "sparse"
-        self.Z_ = self.alpha_ = self.chol_ = None
-        self.inducing_ = self.beta_ = self.sparse_M_ = None
-        if self.mode_ == "exact":
-            K = se_kernel(Z, Z, sf2)
-            K.flat[::n + 1] += sn2
-            L, _ = cholesky_jitter(K, 1e-10 * sf2)
-            del K
-            self.Z_ = Z
-            self.alpha_ = lapack.dpotrs(L, Ys, lower=1)[0]
-            if self.var_mode_ == "exact":
-                self.chol_ = np.asfortranarray(L)
-        if self.var_mode_ == "sparse":
-            m = min(self.n_inducing, n)
-            self.inducing_ = select_inducing(Z, m, self.random_state)
-            self.beta_, self.sparse_M_ = sparse_posterior(Z, Ys, self.inducing_, sf2, sn2, self.sparse_method)
-        self.heldout_nrmse_ = None
-        self.fit_seconds_ = time.perf_counter() - t0
-        self._prepare()
-        return self
-
-    def _optimise(self, Xs: np.ndarray, Ys: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, float]:
-        """Maximise the log marginal likelihood on a random subset of ``n_hyper`` points.
-
-        Restarts are cheap: every start (the default one and ``n_restarts`` random ones) is
-        optimised on a probe subset of 300 points, and only the best optimum is refined on the
-        ``n_hyper`` subset (one eval costs ≈ 0.1 s at 1,000 points, ≈ 4 ms at 300).
-        """
-        n, d = Xs.shape
-        idx = rng.permutation(n)[:self.n_hyper]
-        Xs, Ys = Xs[idx], Ys[idx]
-        n_ell = d if self.ard else 1
-        bounds = [_BOUNDS_LENGTH] * n_ell + [_BOUNDS_SF, _BOUNDS_NOISE]
-        starts = [np.concatenate([np.zeros(n_ell), [0.0, np.log(0.1)]])]
-        for _ in range(self.n_restarts):
-            starts.append(np.concatenate([rng.uniform(np.log(0.2), np.log(5.0), n_ell),
-                                          [rng.uniform(np.log(0.5), np.log(2.0)),
-                                           rng.uniform(np.log(0.01), np.log(0.5))]]))
-
-        def run(x0: np.ndarray, X: np.ndarray, Y: np.ndarray) -> Any:
-            return minimize(neg_log_marginal_likelihood, x0, args=(X, Y, self.ard), jac=True,
-                            method="L-BFGS-B", bounds=bounds, options={"maxiter": self.max_iter})
-
-        if len(starts) > 1 and len(Xs) > _PROBE:
-            probes = [run(x0, Xs[:_PROBE], Ys[:_PROBE]) for x0 in starts]
-            starts = [min(probes, key=lambda r: r.fun).x]
-        best = min((run(x0, Xs, Ys) for x0 in starts), key=lambda r: r.fun)
-        return np.asarray(best.x), -float(best.fun)
+        return Xs, Ys
 
     # -- the 1 kHz path -------------------------------------------------------------------------
     def _prepare(self) -> None:
@@ -521,26 +441,9 @@ class GPLaw(BaseEstimator, RegressorMixin):
 
     def to_arrays(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """The fitted law as named arrays and JSON metadata (what :meth:`save` writes; models that
-        embed a GP store these under a prefix of their own)."""
+        embed a GP store these under a prefix of their own; :mod:`.gp_store`)."""
         check_is_fitted(self, "mode_")
-        arrays = {"x_mean": self.x_mean_, "x_scale": self.x_scale_, "y_mean": self.y_mean_,
-                  "y_scale": self.y_scale_, "length_scale": self.length_scale_,
-                  "hyper": np.array([self.sigma_f_, self.noise_]), "linear_coef": self.linear_coef_}
-        for key, attr in _FITTED_ARRAYS.items():
-            value = getattr(self, attr)
-            if value is not None:
-                arrays[key] = value
-        params = {k: (list(v) if isinstance(v, (tuple, np.ndarray)) else v) for k, v in self.get_params().items()
-                  if not (k == "theta" and v is None)}    # files without fixed hyperparameters read as before
-        meta = {"params": params, "mode": self.mode_, "var_mode": self.var_mode_,
-                "n_train": int(self.n_train_), "n_features": int(self.n_features_in_),
-                "n_outputs": int(self.n_outputs_), "y_1d": bool(self.y_1d_),
-                "n_inducing": 0 if self.inducing_ is None else int(self.inducing_.shape[0]),
-                "n_hyper_used": int(self.n_hyper_used_),
-                "log_marginal_likelihood": self.log_marginal_likelihood_,
-                "heldout_nrmse": None if self.heldout_nrmse_ is None else list(map(float, self.heldout_nrmse_)),
-                "fit_seconds": self.fit_seconds_, "summary": self.summary()}
-        return arrays, meta
+        return law_to_arrays(self)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> GPLaw:
@@ -552,78 +455,9 @@ class GPLaw(BaseEstimator, RegressorMixin):
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray], meta: dict[str, Any], file: str, prefix: str = "") -> GPLaw:
         """Inverse of :meth:`to_arrays`; problems name ``file`` and the entry (under ``prefix``)."""
-        def fail(element: str, msg: str) -> InvalidInput:
-            return InvalidInput(msg, file=file, element=prefix + element)
-
-        try:
-            params = dict(meta["params"])
-            mode, var_mode = meta["mode"], meta["var_mode"]
-            n, d, p = int(meta["n_train"]), int(meta["n_features"]), int(meta["n_outputs"])
-            m = int(meta["n_inducing"])
-        except (KeyError, TypeError, ValueError) as exc:
-            raise fail("meta", f"metadata entry missing or malformed ({exc})") from None
-        if mode not in MODES:
-            raise fail("meta.mode", f"unknown mode {mode!r}; known: {', '.join(MODES)}")
-        if var_mode not in MODES or (mode == "sparse" and var_mode != "sparse"):
-            raise fail("meta.var_mode", f"invalid variance mode {var_mode!r} for mode {mode!r}")
-        if min(n, d, p) < 1 or m < 0 or (var_mode == "sparse" and m < 1):
-            raise fail("meta", f"bad sizes n_train={n}, n_features={d}, n_outputs={p}, n_inducing={m}")
-        try:
-            law = cls(**params)
-        except TypeError as exc:
-            raise fail("meta.params", f"unknown estimator parameter ({exc})") from None
-        expected: dict[str, tuple[int, ...]] = {
-            "x_mean": (d,), "x_scale": (d,), "y_mean": (p,), "y_scale": (p,), "length_scale": (d,), "hyper": (2,),
-            "linear_coef": (d + 1, p)}
-        if mode == "exact":
-            expected.update(Z=(n, d), alpha=(n, p))
-        if var_mode == "exact":
-            expected.update(chol=(n, n))
-        if var_mode == "sparse":
-            expected.update(inducing=(m, d), beta=(m, p), sparse_M=(m, m))
-        problems = []
-        for key, shape in expected.items():
-            if key not in arrays:
-                problems.append(Problem(file, prefix + key, f"array is missing (needed by mode {mode!r})"))
-                continue
-            a = arrays[key]
-            if a.dtype.kind not in "fiu":
-                problems.append(Problem(file, prefix + key, f"has dtype {a.dtype}, expected float numbers"))
-            elif a.shape != shape:
-                problems.append(Problem(file, prefix + key, f"has shape {a.shape}, expected {shape} "
-                                                   f"(n_train={n}, n_features={d}, n_outputs={p}, n_inducing={m})"))
-            elif not np.all(np.isfinite(a)):
-                problems.append(Problem(file, prefix + key, "has non-finite values"))
-        if not problems:
-            for key in ("x_scale", "y_scale", "length_scale", "hyper"):
-                if np.any(arrays[key] <= 0):
-                    problems.append(Problem(file, prefix + key, "must be positive"))
-        if problems:
-            raise InvalidInput(problems)
-        f64 = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in arrays.items() if k in expected}
-        law.x_mean_, law.x_scale_ = f64["x_mean"], f64["x_scale"]
-        law.y_mean_, law.y_scale_ = f64["y_mean"], f64["y_scale"]
-        law.length_scale_ = f64["length_scale"]
-        law.linear_coef_ = f64["linear_coef"]
-        law.sigma_f_, law.noise_ = float(f64["hyper"][0]), float(f64["hyper"][1])
-        for key, attr in _FITTED_ARRAYS.items():
-            setattr(law, attr, f64.get(key))
-        if law.chol_ is not None:
-            law.chol_ = np.asfortranarray(law.chol_)
-        law.mode_, law.var_mode_ = mode, var_mode
-        law.n_train_, law.n_features_in_, law.n_outputs_ = n, d, p
-        law.y_1d_ = bool(meta.get("y_1d", False)) and p == 1
-        law.n_hyper_used_ = int(meta.get("n_hyper_used", min(n, law.n_hyper)))
-        law.log_marginal_likelihood_ = meta.get("log_marginal_likelihood")
-        h = meta.get("heldout_nrmse")
-        law.heldout_nrmse_ = None if h is None else np.asarray(h, dtype=np.float64)
-        law.fit_seconds_ = meta.get("fit_seconds")
+        law = law_from_arrays(cls, arrays, meta, file, prefix)
         law._prepare()
         return law
-
-
-_FITTED_ARRAYS = {"Z": "Z_", "alpha": "alpha_", "chol": "chol_", "inducing": "inducing_",
-                  "beta": "beta_", "sparse_M": "sparse_M_"}
 
 
 def _augment(Z: np.ndarray, sf2: float) -> np.ndarray:

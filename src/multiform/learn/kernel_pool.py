@@ -146,21 +146,7 @@ class KernelPoolClassifier(ClassifierMixin, BaseEstimator):
         (e.g. a segment and its mirror image) always fall in the same fold."""
         X = np.asarray(X, dtype=np.float64)
         y = np.asarray(y).astype(bool)
-        if X.ndim != 2 or len(X) != len(y):
-            raise ValueError(f"X must be (n, d) with one label per row; got X {X.shape}, y {y.shape}")
-        if len(X) == 0:
-            raise ValueError("no samples to fit")
-        if not np.all(np.isfinite(X)):
-            raise ValueError("X has non-finite values")
-        if self.scoring not in SCORERS:
-            raise ValueError(f"unknown scoring {self.scoring!r}; known: {', '.join(SCORERS)}")
-        unknown = [k for k in self.kernels if k not in DEFAULT_GRIDS]
-        if unknown:
-            raise ValueError(f"unknown kernel(s) {unknown}; known: {', '.join(DEFAULT_GRIDS)}")
-        subsets = {k: [int(c) for c in v] for k, v in (self.subsets or {"all": range(X.shape[1])}).items()}
-        for name, cols in subsets.items():
-            if not cols or min(cols) < 0 or max(cols) >= X.shape[1]:
-                raise ValueError(f"subset {name!r} names columns outside 0..{X.shape[1] - 1}")
+        subsets = self._check_fit(X, y)
         self.classes_ = np.array([False, True])
         self.n_features_in_ = X.shape[1]
         self.n_samples_ = len(y)
@@ -176,16 +162,7 @@ class KernelPoolClassifier(ClassifierMixin, BaseEstimator):
                       for k in self.kernels}
 
         if min_count == 0:
-            seen = bool(y[0])
-            self.constant_ = seen
-            self.best_kernel_, self.best_params_, self.best_score_ = "constant", {}, float("nan")
-            self.best_subset_, self.columns_ = "", []
-            self.n_splits_ = 0
-            self.calibration_ = "laplace"
-            self.cv_scores_ = nan_scores
-            p = (len(y) + 1.0) / (len(y) + 2.0)
-            self.constant_score_ = p if seen else 1.0 - p
-            return self
+            return self._fit_constant(y, nan_scores)
 
         if min_count < 2:
             kernel, params = DEFAULT_CANDIDATE
@@ -208,6 +185,38 @@ class KernelPoolClassifier(ClassifierMixin, BaseEstimator):
                 f = inside
                 self.calibration_ = "in-sample (the refit disagreed with the folds)"
         self.platt_ = platt_fit(f, y)
+        return self
+
+    def _check_fit(self, X: np.ndarray, y: np.ndarray) -> dict[str, list[int]]:
+        """Raise ``ValueError`` on bad data or parameters; returns the column subsets to search."""
+        if X.ndim != 2 or len(X) != len(y):
+            raise ValueError(f"X must be (n, d) with one label per row; got X {X.shape}, y {y.shape}")
+        if len(X) == 0:
+            raise ValueError("no samples to fit")
+        if not np.all(np.isfinite(X)):
+            raise ValueError("X has non-finite values")
+        if self.scoring not in SCORERS:
+            raise ValueError(f"unknown scoring {self.scoring!r}; known: {', '.join(SCORERS)}")
+        unknown = [k for k in self.kernels if k not in DEFAULT_GRIDS]
+        if unknown:
+            raise ValueError(f"unknown kernel(s) {unknown}; known: {', '.join(DEFAULT_GRIDS)}")
+        subsets = {k: [int(c) for c in v] for k, v in (self.subsets or {"all": range(X.shape[1])}).items()}
+        for name, cols in subsets.items():
+            if not cols or min(cols) < 0 or max(cols) >= X.shape[1]:
+                raise ValueError(f"subset {name!r} names columns outside 0..{X.shape[1] - 1}")
+        return subsets
+
+    def _fit_constant(self, y: np.ndarray, nan_scores: dict[str, dict[str, Any]]) -> KernelPoolClassifier:
+        """One class only: the judge answers it always, with Laplace's rule for its probability."""
+        seen = bool(y[0])
+        self.constant_ = seen
+        self.best_kernel_, self.best_params_, self.best_score_ = "constant", {}, float("nan")
+        self.best_subset_, self.columns_ = "", []
+        self.n_splits_ = 0
+        self.calibration_ = "laplace"
+        self.cv_scores_ = nan_scores
+        p = (len(y) + 1.0) / (len(y) + 2.0)
+        self.constant_score_ = p if seen else 1.0 - p
         return self
 
     def _fit_one(self, kernel: str, params: Mapping[str, Any], X: np.ndarray, y: np.ndarray) -> FastDecision:

@@ -85,30 +85,7 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
     the own samples where that law is unsure join (:func:`novel_samples`).
     """
     s = settings or LawSettings()
-    mirror = s.mirror and bool(apn.mirror)
-
-    def both(d: LawData, net: APN, eps: Sequence[Episode], lag: float | None, only: bool) -> LawData:
-        """``d`` and, with ``mirror``, the same episodes' mirror images (sharing their episode index,
-        so an image is held out with its episode)."""
-        if not mirror:
-            return d
-        m = law_data(net, [mirror_episode(net, ep) for ep in eps], law, success_only=only, lag=lag)
-        return LawData(np.concatenate([d.X, m.X]), np.concatenate([d.Y, m.Y]), np.concatenate([d.episode, m.episode]))
-
-    data = both(law_data(apn, episodes, law, success_only=success_only), apn, episodes, None, success_only)
-    n_mentor = len(data.X)
-    if own:
-        net = own_apn or apn
-        mine = both(law_data(net, own, law, success_only=True, lag=0.0), net, own, 0.0, True)
-        n_offered = len(mine.X)
-        if mentor_law is not None and s.own_novelty > 0:
-            mine = novel_samples(mine, mentor_law, s.own_novelty)
-        cap = int(s.own_ratio * n_mentor)
-        if len(mine.X) > cap:
-            keep = np.sort(np.random.default_rng([seed, 1]).choice(len(mine.X), cap, replace=False))
-            mine = LawData(mine.X[keep], mine.Y[keep], mine.episode[keep])
-        data = LawData(np.concatenate([data.X, mine.X]), np.concatenate([data.Y, mine.Y]),
-                       np.concatenate([data.episode, mine.episode + len(episodes)]))
+    data, n_mentor, n_offered = _law_samples(apn, episodes, law, success_only, seed, s, own, own_apn, mentor_law)
     if len(data.X) < 20:
         raise ValueError(f"law {law}: only {len(data.X)} samples from {'successful ' if success_only else ''}"
                          f"segments; record more demonstrations")
@@ -153,6 +130,38 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
                    length_scales={k: round(v, 4) for k, v in info["length_scale"].items()},
                    signal_std=round(float(info["sigma_f"]), 4), noise_std=round(float(info["noise"]), 4))
     return law_model, summary
+
+
+def _law_samples(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool, seed: int, s: LawSettings,
+                 own: Sequence[Episode], own_apn: APN | None, mentor_law: GPLaw | None) -> tuple[LawData, int, int]:
+    """:func:`fit_law`'s samples: the mentor's (and their mirror images), then the robot's own that
+    are novel enough, at most ``own_ratio`` times the mentor's. Returns them with the number of the
+    mentor's and of the own samples offered; own episodes are numbered after the mentor's."""
+    mirror = s.mirror and bool(apn.mirror)
+
+    def both(d: LawData, net: APN, eps: Sequence[Episode], lag: float | None, only: bool) -> LawData:
+        """``d`` and, with ``mirror``, the same episodes' mirror images (sharing their episode index,
+        so an image is held out with its episode)."""
+        if not mirror:
+            return d
+        m = law_data(net, [mirror_episode(net, ep) for ep in eps], law, success_only=only, lag=lag)
+        return LawData(np.concatenate([d.X, m.X]), np.concatenate([d.Y, m.Y]), np.concatenate([d.episode, m.episode]))
+
+    data = both(law_data(apn, episodes, law, success_only=success_only), apn, episodes, None, success_only)
+    n_mentor, n_offered = len(data.X), 0
+    if own:
+        net = own_apn or apn
+        mine = both(law_data(net, own, law, success_only=True, lag=0.0), net, own, 0.0, True)
+        n_offered = len(mine.X)
+        if mentor_law is not None and s.own_novelty > 0:
+            mine = novel_samples(mine, mentor_law, s.own_novelty)
+        cap = int(s.own_ratio * n_mentor)
+        if len(mine.X) > cap:
+            keep = np.sort(np.random.default_rng([seed, 1]).choice(len(mine.X), cap, replace=False))
+            mine = LawData(mine.X[keep], mine.Y[keep], mine.episode[keep])
+        data = LawData(np.concatenate([data.X, mine.X]), np.concatenate([data.Y, mine.Y]),
+                       np.concatenate([data.episode, mine.episode + len(episodes)]))
+    return data, n_mentor, n_offered
 
 
 def novel_samples(data: LawData, current: GPLaw, min_ratio: float) -> LawData:

@@ -90,7 +90,20 @@ def analyse(apn: APN, max_states: int = 10_000) -> Analysis:
     unbounded = sorted({apn.place_ids[i] for m in states for i, x in enumerate(m) if x == OMEGA})
     dead = [t.id for j, t in enumerate(apn.transitions) if not fired[j]]
 
-    # Backward search from states that mark a final place.
+    good = _reaching_final(states, edges, finals)
+    # With the cap hit, unexplored states would look stuck; only a complete graph decides it.
+    bad_states = [] if truncated else [k for k in range(len(states)) if k not in good]
+    stuck = sorted({apn.place_ids[i] for k in bad_states for i, x in enumerate(states[k]) if x > 0},
+                   key=apn.place_ids.index)
+    out_edges = {a for a, _, _ in edges}
+    deadlocks = [states[k] for k in bad_states if k not in out_edges]
+    return Analysis(states=states, edges=edges, truncated=truncated, max_states=max_states,
+                    unbounded_places=unbounded, dead_transitions=dead, stuck_places=stuck,
+                    deadlocks=deadlocks, final_reachable=bool(good) and 0 in good)
+
+
+def _reaching_final(states: list[Marking], edges: list[tuple[int, str, int]], finals: list[int]) -> set[int]:
+    """The states from which a state that marks a final place can be reached (a backward search)."""
     preds: dict[int, list[int]] = {}
     for a, _, b in edges:
         preds.setdefault(b, []).append(a)
@@ -102,15 +115,7 @@ def analyse(apn: APN, max_states: int = 10_000) -> Analysis:
             if a not in good:
                 good.add(a)
                 stack.append(a)
-    # With the cap hit, unexplored states would look stuck; only a complete graph decides it.
-    bad_states = [] if truncated else [k for k in range(len(states)) if k not in good]
-    stuck = sorted({apn.place_ids[i] for k in bad_states for i, x in enumerate(states[k]) if x > 0},
-                   key=apn.place_ids.index)
-    out_edges = {a for a, _, _ in edges}
-    deadlocks = [states[k] for k in bad_states if k not in out_edges]
-    return Analysis(states=states, edges=edges, truncated=truncated, max_states=max_states,
-                    unbounded_places=unbounded, dead_transitions=dead, stuck_places=stuck,
-                    deadlocks=deadlocks, final_reachable=bool(good) and 0 in good)
+    return good
 
 
 def format_marking(apn: APN, m: Marking) -> str:

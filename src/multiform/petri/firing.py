@@ -83,15 +83,14 @@ class NetRunner:
                                element="transitions")
 
         # Slot layout of the flat value list the compiled guards read.
-        names: list[str] = list(apn.variables) + list(apn.derived) + ["time"]
-        names += [f"dwell_{p}" for p in apn.place_ids] + [f"fires_{t}" for t in apn.transition_ids]
+        names = apn.value_names
         self.slots = {n: i for i, n in enumerate(names)}
         self._n_state = len(apn.variables)
         self._state_getter = operator.itemgetter(*[list(state_names).index(v) for v in apn.variables]) \
             if apn.variables else None
         self._derived = [(self.slots[n], g.compile(self.slots)) for n, g in apn.derived.items()]
         self._time_slot = self.slots["time"]
-        self._dwell_slot = [self.slots[f"dwell_{p}"] for p in apn.place_ids]
+        self.dwell_slots = [self.slots[f"dwell_{p}"] for p in apn.place_ids]     # per place, in place order
         self._fires_slot = [self.slots[f"fires_{t}"] for t in apn.transition_ids]
 
         # Per transition: its 'dwell' slot (an alias for a single input place; an extra slot holding
@@ -102,13 +101,13 @@ class NetRunner:
         for t in apn.transitions:
             ins = [apn.place_index(p) for p in t.inputs]
             if len(ins) == 1:
-                dwell = self._dwell_slot[ins[0]]
+                dwell = self.dwell_slots[ins[0]]
             elif not ins:
                 dwell = self._time_slot
             else:
                 dwell = n_slots
                 n_slots += 1
-                self._multi_dwell.append((dwell, [self._dwell_slot[i] for i in ins]))
+                self._multi_dwell.append((dwell, [self.dwell_slots[i] for i in ins]))
             if t.condition.is_learned:
                 self._guards.append(self._learned_guard(learned[t.condition.model]))
             else:
@@ -116,12 +115,8 @@ class NetRunner:
         # A condition that yields to other transitions holds only where none of theirs does.
         own = list(self._guards)
         for j, t in enumerate(apn.transitions):
-            if t.condition.unless:
-                unknown = [u for u in t.condition.unless if u not in apn.transition_ids]
-                if unknown:
-                    raise InvalidInput(f"condition yields to unknown transition(s) {', '.join(unknown)}",
-                                       element=f"transitions.{t.id}.condition.unless")
-                others = [own[apn.transition_ids.index(u)] for u in t.condition.unless]
+            if t.condition.unless:          # the skill loader checked that they are transitions of the net
+                others = [own[apn.transition_index(u)] for u in t.condition.unless]
                 self._guards[j] = _yielding(own[j], others)
         self._n_slots = n_slots
         self._pre_cols = [[(apn.place_index(p), w) for p, w in t.inputs.items()] for t in apn.transitions]
@@ -173,7 +168,7 @@ class NetRunner:
         self._marked = [i for i, n in enumerate(m) if n]
         for i, n in enumerate(m):
             if not n:
-                self.values[self._dwell_slot[i]] = 0.0
+                self.values[self.dwell_slots[i]] = 0.0
 
     def observe(self, state: Sequence[float], time: float) -> list[float]:
         """Load one state vector and the trial time into the value slots (steps 1 of the tick)."""
@@ -190,7 +185,7 @@ class NetRunner:
             except (ArithmeticError, ValueError):     # sqrt(-1), overflow: the value is undefined
                 v[slot] = math.nan
         v[self._time_slot] = time
-        entered, dslot = self._entered, self._dwell_slot
+        entered, dslot = self._entered, self.dwell_slots
         for i in self._marked:                       # an empty place's dwell is 0, set when it emptied
             v[dslot[i]] = time - entered[i]
         for slot, ins in self._multi_dwell:
@@ -240,7 +235,7 @@ class NetRunner:
         for i, w in self._post_cols[j]:
             m[i] += w
             self._entered[i] = self.time
-            self.values[self._dwell_slot[i]] = 0.0
+            self.values[self.dwell_slots[i]] = 0.0
         self.values[self._fires_slot[j]] += 1
         law = self._law[j]
         if law is not None:

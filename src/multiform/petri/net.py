@@ -18,7 +18,30 @@ import numpy as np
 from .guard import Guard, parse_guard
 
 FINAL_KINDS = ("success", "failure")
-CLOCK_VARIABLES = ("time", "dwell")
+CLOCK_VARIABLES = ("time", "dwell")      # trial time; the dwell of the transition's own input place
+
+
+def is_clock(name: str) -> bool:
+    """Whether ``name`` is one of a net's clocks and counters (``time``, ``dwell``, ``dwell_<place>``,
+    ``fires_<transition>``) rather than a state or derived variable."""
+    return name in CLOCK_VARIABLES or name.startswith(("dwell_", "fires_"))
+
+
+def value_names(variables: Sequence[str], derived: Sequence[str], place_ids: Sequence[str],
+                transition_ids: Sequence[str]) -> tuple[str, ...]:
+    """The values a net keeps while it runs, in the order :class:`~.firing.NetRunner` stores them:
+    the state variables, the derived variables, ``time``, ``dwell_<place>`` per place and
+    ``fires_<transition>`` per transition."""
+    return (*variables, *derived, "time", *(f"dwell_{p}" for p in place_ids),
+            *(f"fires_{t}" for t in transition_ids))
+
+
+def condition_names(variables: Sequence[str], derived: Sequence[str], place_ids: Sequence[str],
+                    transition_ids: Sequence[str]) -> frozenset[str]:
+    """Every name a condition or law input may read: the :func:`value_names` and ``dwell`` (the
+    dwell of the transition's own input place). The skill loader asks before the net exists;
+    :meth:`APN.condition_variables` for a net."""
+    return frozenset(value_names(variables, derived, place_ids, transition_ids)) | set(CLOCK_VARIABLES)
 
 
 @dataclass(frozen=True)
@@ -251,12 +274,14 @@ class APN:
         pre = self.transition(tid).preset
         return tuple(t.id for t in self.transitions if t.id != tid and t.preset == pre)
 
+    @cached_property
+    def value_names(self) -> tuple[str, ...]:
+        """The values this net keeps while it runs, in the runner's order (:func:`value_names`)."""
+        return value_names(tuple(self.variables), tuple(self.derived), self.place_ids, self.transition_ids)
+
     def condition_variables(self) -> frozenset[str]:
-        """Every name a condition or law input may use in this net."""
-        names = set(self.variables) | set(self.derived) | set(CLOCK_VARIABLES)
-        names |= {f"dwell_{p}" for p in self.place_ids}
-        names |= {f"fires_{t}" for t in self.transition_ids}
-        return frozenset(names)
+        """Every name a condition or law input may use in this net: its ``value_names`` and ``dwell``."""
+        return condition_names(tuple(self.variables), tuple(self.derived), self.place_ids, self.transition_ids)
 
     # -- structural edits (used by revisions; each returns a new net) ---------------------------
     def with_transition(self, t: Transition) -> APN:

@@ -19,7 +19,7 @@ import yaml
 
 from ..errors import InvalidInput, Problem
 from .guard import GuardError, parse_guard
-from .net import APN, FINAL_KINDS, Condition, Law, Place, Transition
+from .net import APN, FINAL_KINDS, Condition, Law, Place, Transition, condition_names, is_clock
 
 IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 TOP_KEYS = {"skill", "description", "env", "control_rate", "max_duration", "variables", "derived",
@@ -158,26 +158,8 @@ def build_apn(data: Mapping[str, Any], file: str, problems: list[Problem]) -> AP
     for tid in transition_ids & place_ids:
         bad(f"transitions.{tid}", "duplicate id: also used by a place")
 
-    clock_names = {"time", "dwell"} | {f"dwell_{p}" for p in place_ids} | {f"fires_{t}" for t in transition_ids}
-    derived: dict[str, Any] = {}
-    raw_derived = data.get("derived", {}) or {}
-    if not isinstance(raw_derived, Mapping):
-        bad("derived", "must be a mapping of name to expression")
-        raw_derived = {}
-    for dname, expr in raw_derived.items():
-        el = f"derived.{dname}"
-        if not isinstance(dname, str) or not IDENT.match(dname):
-            bad(el, "not a valid name")
-            continue
-        if dname in variables:
-            bad(el, "duplicate id: also a state variable")
-            continue
-        try:
-            derived[dname] = parse_guard(str(expr) if isinstance(expr, (int, float)) else expr,
-                                         set(variables) | set(derived) | clock_names)
-        except GuardError as exc:
-            bad(el, str(exc))
-    allowed = frozenset(set(variables) | set(derived) | clock_names)
+    derived = _derived(data.get("derived", {}) or {}, variables, place_ids, transition_ids, bad)
+    allowed = condition_names(variables, derived, place_ids, transition_ids)
 
     laws = _laws(data.get("laws"), allowed, tuple(commands), bad)
     safety = parse_safety(data.get("safety"), set(variables) | set(derived), tuple(commands), bad)
@@ -185,23 +167,7 @@ def build_apn(data: Mapping[str, Any], file: str, problems: list[Problem]) -> AP
     transitions = parse_transitions(transitions_raw, place_ids, transition_ids, allowed, laws, bad)
     transitions = _extra_arcs(data.get("arcs"), transitions, place_ids, bad)
 
-    marking_raw = data.get("initial_marking")
-    initial: dict[str, int] = {}
-    if not isinstance(marking_raw, Mapping) or not marking_raw:
-        bad("initial_marking", "no initial marking (a mapping of place id to token count)")
-    else:
-        for p, n in marking_raw.items():
-            el = f"initial_marking.{p}"
-            if p not in place_ids:
-                bad(el, f"unknown place {p!r}")
-            elif not _is_int(n) or n < 0:
-                bad(el, f"token count must be a non-negative integer, got {_shown(n)}")
-            elif n > MAX_COUNT:
-                bad(el, f"token count {_shown(n)} is out of range (at most {MAX_COUNT})")
-            elif n > 0:
-                initial[str(p)] = int(n)
-        if not initial and isinstance(marking_raw, Mapping) and marking_raw:
-            bad("initial_marking", "no place holds a token")
+    initial = _initial_marking(data.get("initial_marking"), place_ids, bad)
 
     if not any(p.final == "success" for p in places) and places:
         bad("places", "no place is marked 'final: success'")
@@ -212,6 +178,54 @@ def build_apn(data: Mapping[str, Any], file: str, problems: list[Problem]) -> AP
     if initial and places and not problems:
         _check_final_reachable(apn, bad)
     return apn
+
+
+def _derived(raw: Any, variables: Mapping[str, str], place_ids: set[str], transition_ids: set[str],
+             bad) -> dict[str, Any]:
+    """The derived variables, each an expression over the state variables, the clocks and the
+    derived variables before it."""
+    derived: dict[str, Any] = {}
+    if not isinstance(raw, Mapping):
+        bad("derived", "must be a mapping of name to expression")
+        return derived
+    for dname, expr in raw.items():
+        el = f"derived.{dname}"
+        if not isinstance(dname, str) or not IDENT.match(dname):
+            bad(el, "not a valid name")
+            continue
+        if dname in variables:
+            bad(el, "duplicate id: also a state variable")
+            continue
+        if is_clock(dname):
+            bad(el, "reserved for the net's clocks and counters")
+            continue
+        try:
+            derived[dname] = parse_guard(str(expr) if isinstance(expr, (int, float)) else expr,
+                                         condition_names(variables, derived, place_ids, transition_ids))
+        except GuardError as exc:
+            bad(el, str(exc))
+    return derived
+
+
+def _initial_marking(raw: Any, place_ids: set[str], bad) -> dict[str, int]:
+    """Place id -> tokens, of the places that hold any."""
+    initial: dict[str, int] = {}
+    if not isinstance(raw, Mapping) or not raw:
+        bad("initial_marking", "no initial marking (a mapping of place id to token count)")
+        return initial
+    for p, n in raw.items():
+        el = f"initial_marking.{p}"
+        if p not in place_ids:
+            bad(el, f"unknown place {p!r}")
+        elif not _is_int(n) or n < 0:
+            bad(el, f"token count must be a non-negative integer, got {_shown(n)}")
+        elif n > MAX_COUNT:
+            bad(el, f"token count {_shown(n)} is out of range (at most {MAX_COUNT})")
+        elif n > 0:
+            initial[str(p)] = int(n)
+    if not initial:
+        bad("initial_marking", "no place holds a token")
+    return initial
 
 
 def parse_mirror(raw: Any, variables: set[str], commands: tuple[str, ...], bad) -> dict[str, int]:
@@ -330,7 +344,7 @@ def _variables(raw: Any, bad) -> dict[str, str]:
     for name, desc in raw.items():
         if not isinstance(name, str) or not IDENT.match(name) or name.startswith("__"):
             bad(f"variables.{name}", "not a valid variable name")
-        elif name in ("time", "dwell") or name.startswith(("dwell_", "fires_")):
+        elif is_clock(name):
             bad(f"variables.{name}", "reserved for the net's clocks and counters")
         else:
             out[name] = "" if desc is None else str(desc)

@@ -181,8 +181,36 @@ def page_html(m: dict[str, Any]) -> str:
     """The report page of a run's metrics (a self-contained HTML document)."""
     art = m.get("artifacts", {})
     revisions = m.get("revisions", [])
+    plots = art.get("plots", {})
+    tr = m.get("training", {})
     parts: list[str] = [f"<h1>multiform — {_code(m.get('skill', ''))}</h1>", _p(_e(m.get("description", "")))]
+    parts += _summary(m, revisions)
+    parts += _configuration(m, revisions)
+    parts += _demonstrations(m.get("demos"))
+    parts += _revisions(m, revisions)
+    parts += _nets(art.get("nets", []), revisions)
+    parts += _scenarios(m.get("scenarios", {}))
+    parts += _trial_plots(plots)
+    parts += _evaluation(m, plots, revisions)
+    parts += _views(art.get("views", {}))
+    parts += _videos(art.get("videos", {}), plots)
+    parts += _laws(tr.get("laws"))
+    parts += _judges(tr.get("judges"))
+    if tr.get("inverse_model"):
+        parts.append("<h2>The auxiliary inverse model</h2>")
+        parts.append(_table([{"k": word(k), "v": Html(_code(v)) if isinstance(v, str) else v}
+                             for k, v in tr["inverse_model"].items()],
+                            [("k", "quantity"), ("v", "value")]))
+    if "timings" in m:
+        parts.append("<h2>Timings</h2>" + _table([{"k": word(k), "v": v} for k, v in m["timings"].items()],
+                                                   [("k", "stage"), ("v", "seconds")]))
+    body = "\n".join(x for x in parts if x)
+    return (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>multiform — {_e(m.get('skill', ''))}</title>"
+            f"<style>{CSS}</style>{CHECK}</head><body>{body}</body></html>\n")
 
+
+def _summary(m: dict[str, Any], revisions: list[dict[str, Any]]) -> list[str]:
+    """The summary table and the robot's verdicts against the physical check."""
     rows: list[tuple[str, str]] = []
     if "demos" in m:
         d = m["demos"]
@@ -212,8 +240,8 @@ def page_html(m: dict[str, Any]) -> str:
         rows.append(("the robot's own verdict", _e(text)))
     if "timings" in m:
         rows.append(("wall time", _e(f"{m['timings'].get('total_s', 0):.0f} s")))
-    parts.append("<h2>Summary</h2><table class='summary'>" + "".join(
-        f"<tr><td>{_e(k)}</td><td>{v}</td></tr>" for k, v in rows) + "</table>")
+    parts = ["<h2>Summary</h2><table class='summary'>" + "".join(
+        f"<tr><td>{_e(k)}</td><td>{v}</td></tr>" for k, v in rows) + "</table>"]
     if m.get("verdicts"):
         v = m["verdicts"]
         parts.append("<h3>The robot's verdict against the physical check (evaluation trials)</h3>" + _table(
@@ -221,69 +249,89 @@ def page_html(m: dict[str, Any]) -> str:
              {"robot": "failure", "ok": v["check_only"], "bad": v["both_failure"]}],
             [("robot", "the robot's judges said"), ("ok", "physical check: success"),
              ("bad", "physical check: failure")], cls="verdicts"))
+    return parts
 
+
+def _configuration(m: dict[str, Any], revisions: list[dict[str, Any]]) -> list[str]:
     cfg = m.get("config", {})
-    if cfg:
-        trained_inverse = "inverse_model" in m.get("training", {})
-        conf = [("task", m.get("task", "")), ("skill definition", Html(_code(m.get("skill", "")))), ("seed", cfg.get("seed")),
-                ("multiform version", m.get("version", "not recorded by this run")),
-                ("final net version", m.get("net_version", len(revisions))),
-                ("demonstrations", cfg.get("demos")), ("evaluation trials", cfg.get("eval_trials")),
-                ("ablation trials (the first of the evaluation trials)", cfg.get("ablation_trials")),
-                ("practice trials per scenario at most", cfg.get("practice_max_trials")),
-                ("learning from practice", cfg.get("learn")),
-                ("fraction of evaluation trials pushed", cfg.get("push_fraction") if m.get("pushed") else "none pushed"),
-                ("joints driven by", "the learned auxiliary inverse model" if trained_inverse
-                 else "the env's own servos (no inverse model)"),
-                ("worker processes", cfg.get("workers"))]
-        parts.append("<h2>Configuration</h2>" + _table([{"k": k, "v": v if isinstance(v, Html) else _fmt(v)}
-                                                         for k, v in conf], [("k", "setting"), ("v", "value")]))
+    if not cfg:
+        return []
+    trained_inverse = "inverse_model" in m.get("training", {})
+    conf = [("task", m.get("task", "")), ("skill definition", Html(_code(m.get("skill", "")))), ("seed", cfg.get("seed")),
+            ("multiform version", m.get("version", "not recorded by this run")),
+            ("final net version", m.get("net_version", len(revisions))),
+            ("demonstrations", cfg.get("demos")), ("evaluation trials", cfg.get("eval_trials")),
+            ("ablation trials (the first of the evaluation trials)", cfg.get("ablation_trials")),
+            ("practice trials per scenario at most", cfg.get("practice_max_trials")),
+            ("learning from practice", cfg.get("learn")),
+            ("fraction of evaluation trials pushed", cfg.get("push_fraction") if m.get("pushed") else "none pushed"),
+            ("joints driven by", "the learned auxiliary inverse model" if trained_inverse
+             else "the env's own servos (no inverse model)"),
+            ("worker processes", cfg.get("workers"))]
+    return ["<h2>Configuration</h2>" + _table([{"k": k, "v": v if isinstance(v, Html) else _fmt(v)}
+                                                for k, v in conf], [("k", "setting"), ("v", "value")])]
 
-    d = m.get("demos")
-    if isinstance(d, dict):
-        parts.append("<h2>Demonstrations</h2>")
-        dur = d.get("duration_s", {})
-        text = f"{d['count']} demonstrations by the scripted mentor in <code>{_e(d.get('file', 'demos.h5'))}</code>"
-        if dur:
-            text += _e(f", {dur['total']:.0f} s in all (each {dur['min']:.1f}–{dur['max']:.1f} s)")
-        if "samples" in d:
-            text += _e(f", {d['samples']} samples")
-        if "mentor_success_rate" in d:
-            text += _e(f"; the mentor succeeded in {_pct(d['mentor_success_rate'])} (its deliberate mistakes included)")
-        parts.append(_p(text + "."))
-        if d.get("samples_per_transition"):
-            parts.append(_table([{"t": Html(_code(t)), "n": n} for t, n in d["samples_per_transition"].items()],
-                                [("t", "transition the mentor tagged"), ("n", "samples")]))
 
-    if revisions:
-        parts.append("<h2>How the robot revised the definition</h2>")
-        titles = {k: s.get("title", k) for k, s in m.get("scenarios", {}).items()}
-        parts.append(_table([{**r, "operator": word(r["operator"]), "target": Html(_code(r["target"])),
-                              "scenario": titles.get(r.get("scenario")) or Html(_code(r.get("scenario", "")))}
-                             for r in revisions],
-                            [("version", "version"), ("scenario", "practice scenario"),
-                             ("after_trial", "after trial"), ("operator", "change"), ("target", "of"),
-                             ("reason", "why (the evidence from the traces)")]))
-    nets = art.get("nets", [])
-    if nets:
-        head = ("The net before and after each revision" if revisions
-                else "The net as the mentor wrote it (practice revised nothing)")
-        parts.append(f"<h2>{_e(head)}</h2><div class='nets'>")
-        for n in nets:
-            parts.append(f"<figure>{_img(n['file'], n['caption'])}<figcaption>{_e(n['caption'])}</figcaption></figure>")
-        parts.append("</div>")
+def _demonstrations(d: Any) -> list[str]:
+    if not isinstance(d, dict):
+        return []
+    parts = ["<h2>Demonstrations</h2>"]
+    dur = d.get("duration_s", {})
+    text = f"{d['count']} demonstrations by the scripted mentor in <code>{_e(d.get('file', 'demos.h5'))}</code>"
+    if dur:
+        text += _e(f", {dur['total']:.0f} s in all (each {dur['min']:.1f}–{dur['max']:.1f} s)")
+    if "samples" in d:
+        text += _e(f", {d['samples']} samples")
+    if "mentor_success_rate" in d:
+        text += _e(f"; the mentor succeeded in {_pct(d['mentor_success_rate'])} (its deliberate mistakes included)")
+    parts.append(_p(text + "."))
+    if d.get("samples_per_transition"):
+        parts.append(_table([{"t": Html(_code(t)), "n": n} for t, n in d["samples_per_transition"].items()],
+                            [("t", "transition the mentor tagged"), ("n", "samples")]))
+    return parts
 
-    scen = m.get("scenarios", {})
-    if scen:
-        parts.append("<h2>Practice scenarios</h2>")
-        for key, s in scen.items():
-            parts.append(f"<h3>{_e(s.get('title', key))}</h3>" + _p(_e(s.get("summary", "") or _practice_summary(s))))
-            if s.get("plot"):
-                parts.append(_img(s["plot"], f"practice {s.get('title', key)}"))
-                parts.append(_p("Each dot is a trial, numbered from 0 as in the practice log; an orange line "
-                                "stands just before the first trial that ran the revised net."
-                                if s.get("revisions") else "Each dot is a trial, numbered from 0 as in the practice log."))
-    plots = art.get("plots", {})
+
+def _revisions(m: dict[str, Any], revisions: list[dict[str, Any]]) -> list[str]:
+    if not revisions:
+        return []
+    titles = {k: s.get("title", k) for k, s in m.get("scenarios", {}).items()}
+    return ["<h2>How the robot revised the definition</h2>",
+            _table([{**r, "operator": word(r["operator"]), "target": Html(_code(r["target"])),
+                     "scenario": titles.get(r.get("scenario")) or Html(_code(r.get("scenario", "")))}
+                    for r in revisions],
+                   [("version", "version"), ("scenario", "practice scenario"),
+                    ("after_trial", "after trial"), ("operator", "change"), ("target", "of"),
+                    ("reason", "why (the evidence from the traces)")])]
+
+
+def _nets(nets: list[dict[str, Any]], revisions: list[dict[str, Any]]) -> list[str]:
+    if not nets:
+        return []
+    head = ("The net before and after each revision" if revisions
+            else "The net as the mentor wrote it (practice revised nothing)")
+    return ([f"<h2>{_e(head)}</h2><div class='nets'>"]
+            + [f"<figure>{_img(n['file'], n['caption'])}<figcaption>{_e(n['caption'])}</figcaption></figure>"
+               for n in nets]
+            + ["</div>"])
+
+
+def _scenarios(scen: dict[str, Any]) -> list[str]:
+    if not scen:
+        return []
+    parts = ["<h2>Practice scenarios</h2>"]
+    for key, s in scen.items():
+        parts.append(f"<h3>{_e(s.get('title', key))}</h3>" + _p(_e(s.get("summary", "") or _practice_summary(s))))
+        if s.get("plot"):
+            parts.append(_img(s["plot"], f"practice {s.get('title', key)}"))
+            parts.append(_p("Each dot is a trial, numbered from 0 as in the practice log; an orange line "
+                            "stands just before the first trial that ran the revised net."
+                            if s.get("revisions") else "Each dot is a trial, numbered from 0 as in the practice log."))
+    return parts
+
+
+def _trial_plots(plots: dict[str, Any]) -> list[str]:
+    """The plots of a successful trial and of a recovery from a push."""
+    parts = []
     for key in ("success_trial", "recovery_trial"):
         if key not in plots:
             continue
@@ -297,74 +345,84 @@ def page_html(m: dict[str, Any]) -> str:
         if e.get("push_time") is not None:
             text += _e(f" The experimenter pushed at {e['push_time']:.2f} s (dashed line).")
         parts.append(_p(text))
-    if m.get("ablation"):
-        parts.append("<h2>Evaluation and ablations (same seeds, same demonstrations)</h2>")
-        if "evaluation" in plots:
-            parts.append(_img(_plot_entry(plots["evaluation"])["file"], "success over the evaluation trials"))
-        rows2 = [{**r, "success": _pct(r)} for r in m["ablation"]]
-        if not revisions and rows2 and rows2[0].get("notes") == "the robot's revised net":
-            rows2[0]["notes"] = "the mentor's net: practice revised nothing"
-        parts.append(_table(rows2, [("name", "variant"), ("success", "success rate"), ("notes", "what it lacks")]))
-    views = art.get("views", {})
-    if views:
-        parts.append("<h2>Recordings for rerun's viewer</h2>")
-        parts.append(_p("Open one with <code>rerun FILE</code> (or drop it on the web viewer): the state and commands "
-                        "over time, the net with its marking at each firing, the scene, pushes, clips and grades."))
-        parts.append("<ul>" + "".join(f"<li><a href='{_e(v['file'])}'>{_e(v['file'])}</a>: {_e(v['caption'])}</li>"
-                                      for v in views.values()) + "</ul>")
-    vids = art.get("videos", {})
-    if vids:
-        parts.append("<h2>Videos</h2>")
-        pushed = any(_plot_entry(v).get("push_time") is not None for v in plots.values())
-        parts.append(_p("Each frame shows the time, the place the token is in and the transition being executed"
-                        + (", and for 0.6 s from it, the push." if pushed else ".")))
-        for key, v in vids.items():
-            parts.append(f"<h3>{_e(v.get('caption', key))}</h3><video controls muted src='{_e(v['file'])}'></video>")
-    tr = m.get("training", {})
-    if tr.get("laws"):
-        parts.append("<h2>Laws learned from demonstration</h2>")
-        laws = []
-        worse = []
-        for k, v in tr["laws"].items():
-            nrmse = v.get("heldout_nrmse")
-            note = ""
-            if nrmse is not None and nrmse > 1:
-                note = "worse than predicting the mean command"
-                worse.append(k)
-            laws.append({**v, "law": Html(_code(k)), "length_scales": _named(v.get("length_scales", {})),
-                         "mode": "sparse (inducing points)" if v.get("mode") == "sparse" else "exact", "note": note})
-        parts.append(_table(laws, [("law", "law"), ("n", "training samples"), ("mode", "GP"),
-                                   ("heldout_nrmse", "held-out NRMSE"), ("note", "note"),
-                                   ("length_scales", "length scales"), ("signal_std", "σf"), ("noise_std", "σn")]))
-        if worse:
-            parts.append(_p(
-                "NRMSE is the held-out error divided by the spread of the commands; above 1 the law predicts the "
-                "mentor's commands on unseen demonstrations worse than their mean would. "
-                + " ".join(_code(w) for w in worse)
-                + (" is" if len(worse) == 1 else " are")
-                + " such a law: the skill works through the net's closed loop, not through imitation accuracy, "
-                  "and a law this loose is the first place to look when its sub-procedure fails."))
-    if tr.get("judges"):
-        parts.append("<h2>Judges learned from evaluation</h2>")
-        judges = []
-        for k, v in tr["judges"].items():
-            n, acc = v.get("heldout_segments"), v.get("heldout_accuracy")
-            held = "–" if acc is None else (f"{round(acc * n)}/{n} ({100 * acc:.0f} %)" if n else f"{100 * acc:.1f} %")
-            cv = v.get("cv_score")
-            judges.append({"place": Html(_code(k)), "kernel": v.get("kernel", ""),
-                           "cv": "–" if cv is None else f"{100 * cv:.1f} %", "held": held,
-                           "segments": v.get("segments"), "success": v.get("success_labels")})
-        parts.append(_table(judges, [("place", "place"), ("kernel", "chosen kernel"), ("cv", "cross-validated accuracy"),
-                                     ("held", "held-out segments right"), ("segments", "labelled segments"),
-                                     ("success", "of them success")]))
-    if tr.get("inverse_model"):
-        parts.append("<h2>The auxiliary inverse model</h2>")
-        parts.append(_table([{"k": word(k), "v": Html(_code(v)) if isinstance(v, str) else v}
-                             for k, v in tr["inverse_model"].items()],
-                            [("k", "quantity"), ("v", "value")]))
-    if "timings" in m:
-        parts.append("<h2>Timings</h2>" + _table([{"k": word(k), "v": v} for k, v in m["timings"].items()],
-                                                   [("k", "stage"), ("v", "seconds")]))
-    body = "\n".join(x for x in parts if x)
-    return (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>multiform — {_e(m.get('skill', ''))}</title>"
-            f"<style>{CSS}</style>{CHECK}</head><body>{body}</body></html>\n")
+    return parts
+
+
+def _evaluation(m: dict[str, Any], plots: dict[str, Any], revisions: list[dict[str, Any]]) -> list[str]:
+    if not m.get("ablation"):
+        return []
+    parts = ["<h2>Evaluation and ablations (same seeds, same demonstrations)</h2>"]
+    if "evaluation" in plots:
+        parts.append(_img(_plot_entry(plots["evaluation"])["file"], "success over the evaluation trials"))
+    rows = [{**r, "success": _pct(r)} for r in m["ablation"]]
+    if not revisions and rows and rows[0].get("notes") == "the robot's revised net":
+        rows[0]["notes"] = "the mentor's net: practice revised nothing"
+    parts.append(_table(rows, [("name", "variant"), ("success", "success rate"), ("notes", "what it lacks")]))
+    return parts
+
+
+def _views(views: dict[str, Any]) -> list[str]:
+    if not views:
+        return []
+    return ["<h2>Recordings for rerun's viewer</h2>",
+            _p("Open one with <code>rerun FILE</code> (or drop it on the web viewer): the state and commands "
+               "over time, the net with its marking at each firing, the scene, pushes, clips and grades."),
+            "<ul>" + "".join(f"<li><a href='{_e(v['file'])}'>{_e(v['file'])}</a>: {_e(v['caption'])}</li>"
+                             for v in views.values()) + "</ul>"]
+
+
+def _videos(vids: dict[str, Any], plots: dict[str, Any]) -> list[str]:
+    if not vids:
+        return []
+    pushed = any(_plot_entry(v).get("push_time") is not None for v in plots.values())
+    return (["<h2>Videos</h2>",
+             _p("Each frame shows the time, the place the token is in and the transition being executed"
+                + (", and for 0.6 s from it, the push." if pushed else "."))]
+            + [f"<h3>{_e(v.get('caption', key))}</h3><video controls muted src='{_e(v['file'])}'></video>"
+               for key, v in vids.items()])
+
+
+def _laws(laws_m: dict[str, Any] | None) -> list[str]:
+    """The laws learned from demonstration, with a word on any that does worse than the mean command."""
+    if not laws_m:
+        return []
+    laws = []
+    worse = []
+    for k, v in laws_m.items():
+        nrmse = v.get("heldout_nrmse")
+        note = ""
+        if nrmse is not None and nrmse > 1:
+            note = "worse than predicting the mean command"
+            worse.append(k)
+        laws.append({**v, "law": Html(_code(k)), "length_scales": _named(v.get("length_scales", {})),
+                     "mode": "sparse (inducing points)" if v.get("mode") == "sparse" else "exact", "note": note})
+    parts = ["<h2>Laws learned from demonstration</h2>",
+             _table(laws, [("law", "law"), ("n", "training samples"), ("mode", "GP"),
+                           ("heldout_nrmse", "held-out NRMSE"), ("note", "note"),
+                           ("length_scales", "length scales"), ("signal_std", "σf"), ("noise_std", "σn")])]
+    if worse:
+        parts.append(_p(
+            "NRMSE is the held-out error divided by the spread of the commands; above 1 the law predicts the "
+            "mentor's commands on unseen demonstrations worse than their mean would. "
+            + " ".join(_code(w) for w in worse)
+            + (" is" if len(worse) == 1 else " are")
+            + " such a law: the skill works through the net's closed loop, not through imitation accuracy, "
+              "and a law this loose is the first place to look when its sub-procedure fails."))
+    return parts
+
+
+def _judges(judges_m: dict[str, Any] | None) -> list[str]:
+    if not judges_m:
+        return []
+    judges = []
+    for k, v in judges_m.items():
+        n, acc = v.get("heldout_segments"), v.get("heldout_accuracy")
+        held = "–" if acc is None else (f"{round(acc * n)}/{n} ({100 * acc:.0f} %)" if n else f"{100 * acc:.1f} %")
+        cv = v.get("cv_score")
+        judges.append({"place": Html(_code(k)), "kernel": v.get("kernel", ""),
+                       "cv": "–" if cv is None else f"{100 * cv:.1f} %", "held": held,
+                       "segments": v.get("segments"), "success": v.get("success_labels")})
+    return ["<h2>Judges learned from evaluation</h2>",
+            _table(judges, [("place", "place"), ("kernel", "chosen kernel"), ("cv", "cross-validated accuracy"),
+                            ("held", "held-out segments right"), ("segments", "labelled segments"),
+                            ("success", "of them success")])]

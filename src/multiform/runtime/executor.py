@@ -94,7 +94,7 @@ class Executor:
         self.runner = NetRunner(apn, self.obs_names, learned)
         slots = self.runner.slots
         self._n_state = len(apn.variables)
-        self._value_names = tuple(list(apn.variables) + list(apn.derived))
+        self._value_names = apn.value_names[:len(apn.variables) + len(apn.derived)]   # the runner's first slots
         self._cmd_index = {c: i for i, c in enumerate(self.cmd_names)}
         self._plans: dict[str, tuple[Law, Any, np.ndarray, list[int]]] = {}
         for name, law in self.laws.items():
@@ -154,7 +154,7 @@ class Executor:
         rec_cmd = np.zeros((n_ticks, n_cmd), np.float32)
         rec_raw = np.zeros((n_ticks, n_cmd), np.float32)
         marks: list[tuple[int, list[int]]] = [(0, list(runner.marking))]    # (tick, marking) at each change
-        dwell_slots = [runner.slots[f"dwell_{p}"] for p in self.apn.place_ids]
+        dwell_slots = runner.dwell_slots
         poses: list[np.ndarray] = []
         data = getattr(env.unwrapped, "data", None)
         cmd = [0.0] * n_cmd

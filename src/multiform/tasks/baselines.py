@@ -10,6 +10,7 @@ import yaml
 from ..learn.gp import GPLaw
 from ..learn.views import value_matrix
 from ..model import SkillModel
+from ..petri.net import is_clock
 from ..petri.skillfile import skill_to_data
 
 
@@ -33,7 +34,7 @@ def demo_only_model(model: SkillModel, folder: Path, hold_condition: str, hold_t
     apn = model.history.version(0)
     inputs: list[str] = []
     for law in apn.laws.values():
-        inputs += [v for v in law.inputs if v not in inputs and not v.startswith(("dwell", "fires_", "time"))]
+        inputs += [v for v in law.inputs if v not in inputs and not is_clock(v)]
     data = skill_to_data(apn)
     skill = {k: data[k] for k in ("variables", "derived", "commands", "safety", "control_rate", "max_duration")
              if k in data}
