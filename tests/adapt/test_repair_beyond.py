@@ -180,11 +180,11 @@ def test_a_repeat_limit_that_ends_trials_the_mentor_kept_going_is_moved():
     tr = [make_trace(apn, fir, vals(60), "failure", enabled={"t1": 50}, held={"t1": 0}) for _ in range(3)]
     d = diagnose(apn, tr, mentor=mentor)
     (f,) = [f for f in d.findings if f.kind == "limit_too_tight"]
-    assert f.transition == "t4" and f.condition == "fires_t2 >= 5"       # ceil(1 * 1.25 * 2.0 / 0.51)
+    assert f.transition == "t4" and f.condition == "fires_t2 >= 8"       # ceil(1 * 2.0 * 2.0 / 0.51)
     # t1 never held, but it holds where the mentor switched: the trials ended before it could
     assert "t1" in d.never_held and [c.key for c in candidates(apn, d, FakeLearners(mentor))] == ["limit_too_tight:t4"]
     r = repair(apn, d, FakeLearners(mentor))
-    assert r.key == "limit_too_tight:t4" and str(r.apn.transition("t4").condition) == "fires_t2 >= 5"
+    assert r.key == "limit_too_tight:t4" and str(r.apn.transition("t4").condition) == "fires_t2 >= 8"
 
 
 def test_a_fall_angle_inside_what_the_mentor_balanced_through_is_moved_beyond_it():
@@ -319,7 +319,7 @@ def test_a_clock_limit_is_read_as_the_net_saw_it_before_firing():
         t.dwell[40:70, apn.place_ids.index("P2")] = np.arange(30) * t.dt
         tr.append(t)
     (f,) = [f for f in diagnose(apn, tr, mentor=mentor).findings if f.kind == "limit_too_tight"]
-    assert f.condition == "dwell > 0.625"                        # 0.15 * 1.25 * 1.0 s / 0.3 s
+    assert f.condition == "dwell > 1"                            # 0.15 * 2.0 * 1.0 s / 0.3 s
 
 
 def test_which_lambdas_are_exhausted_is_read_off_the_revisions():
