@@ -202,65 +202,16 @@ def _strictness(apn: APN, failed: list[Trace], succeeded: list[list[str]], mento
         ev = {**fit.to_json(), "fired_in_failed_trials": fired, "failed_trials": len(failed),
               "failed_waiting_in_" + "_".join(t.inputs): waited}
         if fit.hit < STRICT and 2 * waited >= len(failed) and 2 * fired < len(failed):
-            moved = _bounds_at_switches(apn, tid, mentor)
             out.append(Finding("too_strict", tid,
                                f"'{t.condition}' holds at {100 * fit.hit:.0f} % of the {fit.switches} moments the mentor "
                                f"switched into {tid}; {waited} of {len(failed)} failed trials ended waiting in "
-                               f"{', '.join(t.inputs)}, {fired} fired it",
-                               {**ev, **(moved[1] if moved else {})}, condition=moved[0] if moved else None))
+                               f"{', '.join(t.inputs)}, {fired} fired it", ev))
         elif fit.loose > LOOSE and 2 * fired >= len(failed):
             out.append(Finding("too_loose", tid,
                                f"'{t.condition}' holds at {100 * fit.loose:.1f} % of the states where the mentor chose "
                                f"not to switch into {tid} (over {fit.negatives}); the robot fired it in {fired} of "
                                f"{len(failed)} failed trials", ev))
     return out
-
-
-def _bounds_at_switches(apn: APN, tid: str, mentor: MentorEvidence) -> tuple[str, dict[str, Any]] | None:
-    """The condition of ``tid`` in the mentor's own words with its state bounds moved just beyond the
-    states at which the mentor switched into it (``x > c`` to below the least ``x`` at a switch, by a
-    tenth of their spread), or None if that is not a loosening that holds at every such switch: an
-    atom ``x == c``, a bound on a clock or an ``or`` leave the condition to be relearned instead."""
-    from ..learn.condition import switch_windows
-    g = apn.transition(tid).condition.guard
-    if g is None:
-        return None
-    atoms = _atoms(g.tree)
-    state = [(path, atom) for path, atom in atoms if not any(is_clock(n) for n in _vars(atom))]
-    if not state or g.tree[0] not in ("and", "cmp") or any(_normal(a)[1] not in _GT + _LT for _, a in state):
-        return None
-    names = sorted(set().union(*(_vars(a) for _, a in state)))
-    at = np.array([W[0] for _, _, W in switch_windows(apn, mentor.episodes, tid, names, before=0.0, after=0.0)
-                   if len(W)])
-    if len(at) < 3:
-        return None
-    env = {n: at[:, i] for i, n in enumerate(names)}
-    tree, moved = g.tree, {}
-    for path, atom in state:
-        expr, op, c = _normal(atom)
-        v = parse_guard(to_text(expr)).evaluate_arrays(env)
-        v = v[np.isfinite(v)]
-        if not len(v):
-            return None
-        lo, hi = float(v.min()), float(v.max())
-        pad = 0.1 * (hi - lo) or 1e-3 * max(abs(lo), abs(hi), 1.0)
-        new = float(f"{lo - pad:.4g}") if op in _GT else float(f"{hi + pad:.4g}")
-        if (op in _GT and new >= c) or (op in _LT and new <= c):
-            continue                                     # this bound already lets the mentor's switches through
-        tree = _replace(tree, path, _with_constant(atom, new))
-        moved[to_text(atom)] = {"to": new, "mentor_at_switches": [round(lo, 4), round(hi, 4)]}
-    if not moved:
-        return None
-    holds = parse_guard(to_text(_state_tree(tree, [p for p, _ in state])))    # clocks are not judged at an instant
-    if not (holds.evaluate_arrays({n: env[n] for n in holds.variables}) > 0).all():
-        return None
-    return to_text(tree), {"bounds_moved": moved, "mentor_switch_instants": len(at)}
-
-
-def _state_tree(tree: tuple, paths: list[tuple]) -> tuple:
-    """The conjunction of the atoms of ``tree`` at ``paths``."""
-    items = [_get(tree, p) for p in paths]
-    return items[0] if len(items) == 1 else ("and", items)
 
 
 def _atoms(tree: tuple, path: tuple = ()) -> list[tuple[tuple, tuple]]:

@@ -242,14 +242,6 @@ def relearn_from_mentor(apn: APN, f: Finding, learners: Learners) -> Repair | No
     return Repair(new, [rev], f"C({f.transition}) ← learned {name} ({f.kind.replace('_', ' ')})")
 
 
-def move_bounds(apn: APN, f: Finding) -> Repair:
-    """A too strict condition kept in the mentor's words, its bounds moved to where the mentor switched
-    (the finding holds the new text): less change to the definition than relearning it."""
-    new, rev = set_condition(apn, f.transition, f.condition,
-                             f.reason + f"; its bounds moved to the mentor's switches: '{f.condition}'", f.evidence)
-    return Repair(new, [rev], f"C({f.transition}) ← {f.condition}")
-
-
 def move_limit(apn: APN, f: Finding) -> Repair:
     """A give-up or stop rule moved to what the demonstrations show (the finding holds the new text)."""
     new, rev = set_condition(apn, f.transition, f.condition, f.reason, f.evidence)
@@ -328,9 +320,6 @@ def candidates(apn: APN, d: Diagnosis, learners: Learners, exhausted: frozenset[
              and t not in exhausted and apn.transition(t).lam > 0]
     if risky:
         add(f"risky_choice:{risky[0]}", "lambda", lambda: adjust_lambda(apn, d, exhausted=exhausted))
-    for f in by_kind.get("too_strict", []):
-        if f.condition is not None:
-            add(f"too_strict_bounds:{f.transition}", "condition", lambda f=f: move_bounds(apn, f))
     for kind in ("too_strict", "too_loose"):
         for f in by_kind.get(kind, []):
             add(f"{kind}:{f.transition}", "condition", lambda f=f: relearn_from_mentor(apn, f, learners))
