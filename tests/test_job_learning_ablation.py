@@ -5,8 +5,6 @@ learning's first revision; without learning, or when learning revised nothing, n
 from __future__ import annotations
 
 import shutil
-import sys
-from pathlib import Path
 
 import pytest
 
@@ -14,18 +12,10 @@ import multiform
 from multiform.job import Job, JobConfig
 from multiform.petri.revision import set_lambda
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "mountain_car"
-
 
 @pytest.fixture(scope="module")
-def car(tmp_path_factory):
-    sys.path.insert(0, str(EXAMPLE))
-    try:
-        from mountain_car import MountainCar
-    finally:
-        sys.path.remove(str(EXAMPLE))
-
-    class Learning(MountainCar):
+def car(tmp_path_factory, mountain_car_class):
+    class Learning(mountain_car_class):
         def scenarios(self):
             return [*super().scenarios(), {"name": "keep", "title": "keep practising", "learn": True,
                                           "options": self.trial_options, "config": {"learn": True}}]

@@ -14,18 +14,10 @@ import pytest
 import multiform
 from multiform.adapt.practice import Practice, PracticeConfig
 
-EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "mountain_car"
-
 
 @pytest.fixture(scope="module")
-def trained(tmp_path_factory):
-    import sys
-    sys.path.insert(0, str(EXAMPLE))
-    try:
-        from mountain_car import MountainCar
-    finally:
-        sys.path.remove(str(EXAMPLE))
-    task = MountainCar()
+def trained(tmp_path_factory, mountain_car_class):
+    task = mountain_car_class()
     out = tmp_path_factory.mktemp("mc")
     demos = multiform.record(task, out / "demos.h5", demos=6)
     model = multiform.train(task.SKILL, demos, out / "model", task=task, log=lambda s: None)
