@@ -295,23 +295,3 @@ def test_own_samples_join_only_where_the_mentors_law_is_unsure():
     own = LawData(np.vstack([near, far]), np.zeros((100, 1)), np.arange(100))
     kept = novel_samples(own, law, 0.5)
     assert set(kept.episode.tolist()) == set(range(50, 100))
-
-
-def test_each_refit_round_of_a_law_tries_the_next_sparse_posterior(tmp_path):
-    """With ``refit_inducing`` the refits of a law go through the listed inducing-point counts in turn
-    (counted from the history, so a resumed loop picks up where it was), on all samples; without it,
-    the default settings."""
-    model = _model(tmp_path)
-    practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, refit_inducing=(1000, 300)), name="c")
-    picks = []
-    for k in range(3):
-        s = practice._law_settings("swing_up")
-        picks.append((s.n_inducing, s.max_train > 10**6))
-        _, rev = refit_law(model.apn, "swing_up", "swing_up_r1", "own data", {})
-        model.history.record(rev)
-    assert picks == [(1000, True), (300, True), (1000, True)]
-    assert practice._law_settings("balance").n_inducing == 1000         # counted per law
-    plain = Practice(model, tmp_path / "q", PracticeConfig(learn=True), name="c")._law_settings("swing_up")
-    assert (plain.n_inducing, plain.max_train) == (300, 20000)
-    with pytest.raises(Exception, match="refit_inducing"):
-        PracticeConfig(refit_inducing=(0,))

@@ -96,14 +96,8 @@ class PracticeConfig:
     exam: bool = False
     exam_margin: int = 2
     novelty: float = 0.0
-    refit_inducing: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
-        if not isinstance(self.refit_inducing, (list, tuple)) or not all(
-                isinstance(m, int) and not isinstance(m, bool) and 1 <= m <= 100_000 for m in self.refit_inducing):
-            raise InvalidInput(f"must be a list of whole numbers in 1..100000, got {self.refit_inducing!r}",
-                               element="refit_inducing")
-        self.refit_inducing = tuple(self.refit_inducing)
         counts = {"failures_in_a_row": 1, "window": 0, "success_streak": 1, "max_trials": 1, "seed": 0,
                   "explore_every": 0, "refit_every": 1, "refit_min_segments": 1, "mentor_every": 0,
                   "mentor_budget": 0, "target_window": 1, "revert_window": 1, "exam_margin": 1}
@@ -439,7 +433,7 @@ class Practice:
             mentor_net = self.model.history.version(0)
             refitted, info = fit_law(mentor_net, self.model.episodes, law, seed=cfg.seed, own=own, own_apn=apn,
                                      current=current, mentor_law=self.model.laws(mentor_net).get(law),
-                                     settings=self._law_settings(law))
+                                     settings=LawSettings(own_novelty=cfg.novelty))
             fit = self.learners.fresh_law(law)
             self.model.save_law(fit, refitted)
             evidence = {"own_segments": len(mine), "new_own_segments": len(new), "own_trials": len(own),
@@ -455,20 +449,6 @@ class Practice:
             apn = self.model.apn
         if made:
             self._watch(state, made[0] - 1, made[-1])
-
-    def _law_settings(self, law: str) -> LawSettings:
-        """The GP settings of ``law``'s next refit: with ``refit_inducing``, the sparse posterior's
-        inducing points of this round (the law's refits so far, reverted ones included, pick it) on
-        all samples. Why: how a law does in closed loop hangs on how its sparse posterior renders the
-        states the mentor visited rarely, which held-out error does not show (10 demos, seed 0: 300,
-        1000 and 2000 inducing points failed 19, 3 and 26 of the same 60 pushed trials, held-out
-        NRMSE 0.30, 0.49, 0.48); only the paired exam of trials can tell the fits apart."""
-        cfg = self.config
-        if not cfg.refit_inducing:
-            return LawSettings(own_novelty=cfg.novelty)
-        rounds = sum(r.operator == "refit_law" and r.target == law for r in self.model.history.revisions())
-        return LawSettings(own_novelty=cfg.novelty, n_inducing=cfg.refit_inducing[rounds % len(cfg.refit_inducing)],
-                           max_train=10**7)
 
     def _fitted_sources(self, law: str) -> set[str]:
         """The trials whose own segments the last recorded refit of ``law`` learned from."""
