@@ -22,7 +22,12 @@ import sys  # noqa: E402
 from collections.abc import Sequence  # noqa: E402
 from pathlib import Path  # noqa: E402
 
+from threadpoolctl import threadpool_limits  # noqa: E402
+
 from .errors import InvalidInput  # noqa: E402
+
+# The package's own imports load NumPy's BLAS before the variables above are read: limit it here too.
+threadpool_limits(1)
 
 EXIT_BAD_INPUT = 2
 EXIT_BROKEN_PIPE = 141         # as a shell reports a process ended by SIGPIPE
