@@ -96,7 +96,7 @@ def test_the_mentor_grades_a_robot_trial_from_what_it_shows():
     assert grade(grip, np.zeros(n)) == [("P1", False), ("P2", False), ("P3", False)]
 
 
-def test_the_grade_from_the_trace_matches_the_flip_the_experimenter_saw(env):
+def test_the_grade_from_the_trace_matches_what_the_flipping_mentor_saw(env):
     """On recorded flips, fumbles included, the trace-only grade of the last stay says what the
     mentor who did the flip saw (it knew which rod ended in its palm)."""
     from multiform.learn.views import place_episode
