@@ -192,12 +192,14 @@ class Job:
     def _repair_only(self, model: SkillModel, ev: Evaluator) -> list[tuple[Variant, list, tqdm]]:
         """With learning from practice: the skill as the repair scenarios left it (the net and laws
         before learning; the same model directory at that net version), on the ablation trials."""
+        if not self.cfg.learn or not self.cfg.ablation_trials:
+            return []
         learning = {sc["name"] for sc in self.task.scenarios() if sc.get("learn")}
         first = next((r.version for r in model.history.revisions() if r.evidence.get("scenario") in learning), None)
-        sub = self._specs()[: self.cfg.ablation_trials]
-        if not self.cfg.learn or first is None or not sub:
+        if first is None:
             return []
         v = first - 1
+        sub = self._specs()[: self.cfg.ablation_trials]
         variant = Variant("practice repairs the net only (no learning from practice)", str(model.path), net_version=v,
                           use_inverse_model=self.cfg.inverse_model,
                           notes=f"net version {v} and its laws: no refit from its own experience")

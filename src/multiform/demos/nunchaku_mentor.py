@@ -42,6 +42,19 @@ from .episode import Episode, SegmentLabel
 _OMEGA2 = 34.5        # small-oscillation frequency squared of the free part [1/s^2], for the energy
 
 
+def release_touch_catch(grip: np.ndarray, pressed: np.ndarray) -> tuple[int | None, int | None, int | None]:
+    """Sample indices, in a flip seen through the magnet's grip and the touch pad (boolean arrays), of
+    the first release, the first press on the back of the hand after it and before the catch, and the
+    final catch (the grip holding again to the end); None for what did not happen."""
+    released = np.flatnonzero(~grip)
+    if not len(released):
+        return None, None, None
+    first = int(released[0])
+    catch = int(released[-1]) + 1 if grip[-1] else None
+    hit = np.flatnonzero(pressed[first:len(grip) if catch is None else catch])
+    return first, (first + int(hit[0]) if len(hit) else None), catch
+
+
 @dataclass(frozen=True)
 class FlipParameters:
     """The flip maneuver (found by CMA-ES in simulation; see the module docstring)."""
@@ -247,18 +260,14 @@ class NunchakuMentor:
         place the robot's token was in, as :func:`multiform.learn.views.place_episode` gives). The
         swing-up stay succeeded when a release followed and the chain then rolled over the back of the
         hand; the two later stays when the flip ended with a rod held. No simulator state is read."""
-        grip = episode.column("grip") > 0.5
-        pressed = episode.column("touch") > touch
         n, dt = episode.num_samples, episode.dt
-        released = np.flatnonzero(~grip)
-        release = int(released[0]) if len(released) else n
-        caught = int(released[-1]) + 1 if len(released) and grip[-1] else n
-        rolled_over = bool(pressed[release:caught].any())
-        flipped = rolled_over and caught < n and (n - caught) * dt >= self.hold_time - 1e-9
+        release, touched, caught = release_touch_catch(episode.column("grip") > 0.5, episode.column("touch") > touch)
+        rolled_over = touched is not None
+        flipped = rolled_over and caught is not None and (n - caught) * dt >= self.hold_time - 1e-9
         out = []
         for start, end, place in episode.segments():
             if place == swung_up:
-                ok = release <= end + 1 and rolled_over
+                ok = rolled_over and release <= end + 1
             elif place in (rolled, regrasped):
                 ok = flipped
             else:

@@ -68,25 +68,20 @@ def robot_env_kwargs(inverse_model: bool) -> dict[str, Any]:
 def flip_events(trace: Trace) -> dict[str, Any]:
     """What the experimenter saw: first release, back touch, the final catch and how long it held,
     and which rod ends in the palm (the env's ``info["scene"]`` at the end of the trial)."""
+    from ..demos.nunchaku_mentor import release_touch_catch
     grip = trace.value("grip") > 0.5
-    touch = trace.value("touch")
     scene = trace.final_info.get("scene") or {}
     out: dict[str, Any] = {"held": scene.get("held", ""), "release": None, "touch": None, "catch": None,
                            "held_for": 0.0}
-    released = np.flatnonzero(~grip)
-    if not len(released):
+    first, hit, catch = release_touch_catch(grip, trace.value("touch") > TOUCH)
+    if first is None:
         return out
-    first = int(released[0])
     out["release"] = first * trace.dt
-    if grip[-1]:
-        catch = int(released[-1]) + 1
+    if catch is not None:
         out["catch"] = catch * trace.dt
         out["held_for"] = (len(grip) - catch) * trace.dt
-    else:
-        catch = len(grip)
-    hit = np.flatnonzero(touch[first:catch] > TOUCH)
-    if len(hit):
-        out["touch"] = (first + int(hit[0])) * trace.dt
+    if hit is not None:
+        out["touch"] = hit * trace.dt
     return out
 
 
