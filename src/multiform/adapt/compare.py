@@ -292,17 +292,21 @@ def _limits(apn: APN, failed: list[Trace], succeeded: list[list[str]], mentor: M
             best[path] = new if old is None else (max(old, new) if op in _GT else min(old, new))
     out = []
     for fid, changes in moves.items():
-        tree = apn.transition(fid).condition.guard.tree
-        for path, value in changes.items():
-            atom = _get(tree, path)
-            tree = _replace(tree, path, _with_constant(atom, value))
-        text = to_text(tree)
+        text = moved_condition(apn, fid, changes)
         n = len(notes[fid])
         out.append(Finding("limit_too_tight", fid,
                            f"the give-up rule '{apn.transition(fid).condition}' ended {n} failed trial(s) where the "
                            f"mentor's successful stays were still going; moved to '{text}'",
                            {"trials": n, "examples": notes[fid][:3]}, condition=text))
     return out
+
+
+def moved_condition(apn: APN, tid: str, changes: dict[tuple, float]) -> str:
+    """``tid``'s guard with the constant of the atom at each path of ``changes`` set to its value."""
+    tree = apn.transition(tid).condition.guard.tree
+    for path, value in changes.items():
+        tree = _replace(tree, path, _with_constant(_get(tree, path), value))
+    return to_text(tree)
 
 
 def _moved_limit(apn: APN, place: str, mentor: MentorEvidence, atom: tuple, expr: tuple, op: Any, c: float,
@@ -322,19 +326,29 @@ def _moved_limit(apn: APN, place: str, mentor: MentorEvidence, atom: tuple, expr
                      "mentor_longest_successful_stay_s": round(mentor_stay, 3)}
     if any(is_clock(n) for n in names):
         return None
-    rng = mentor.stay_range(apn, place, expr)
     v = _eval(expr, env)
+    moved = moved_state_bound(apn, place, mentor, expr, op, v)
+    if moved is None:
+        return None
+    new, (lo, hi) = moved
+    return new, {"atom": to_text(atom), "robot_value": round(v, 4),
+                 "mentor_successful_range": [round(lo, 4), round(hi, 4)]}
+
+
+def moved_state_bound(apn: APN, place: str, mentor: MentorEvidence, expr: tuple, op: Any, v: float
+                      ) -> tuple[float, tuple[float, float]] | None:
+    """A give-up rule's bound ``expr op c`` on state, held at value ``v``, moved a tenth beyond the range
+    of ``expr`` over the mentor's successful stays in ``place`` (and that range); None if ``v`` lies
+    outside that range or the mentor never stayed there successfully."""
+    rng = mentor.stay_range(apn, place, expr)
     if rng is None or not math.isfinite(v):
         return None
     lo, hi = rng
     if op in _GT and v <= hi:
-        new = hi + 0.1 * max(abs(hi), 1e-3)
-    elif op in _LT and v >= lo:
-        new = lo - 0.1 * max(abs(lo), 1e-3)
-    else:
-        return None
-    return new, {"atom": to_text(atom), "robot_value": round(v, 4),
-                 "mentor_successful_range": [round(lo, 4), round(hi, 4)]}
+        return hi + 0.1 * max(abs(hi), 1e-3), rng
+    if op in _LT and v >= lo:
+        return lo - 0.1 * max(abs(lo), 1e-3), rng
+    return None
 
 
 def _get(tree: tuple, path: tuple) -> tuple:

@@ -1,5 +1,10 @@
 """The practice loop: trials from P0, graded by the judges; on constant failure, diagnose and repair.
 
+Before the first trial the definition is held against the mentor's demonstrations (with
+``check_demonstrations``): a give-up rule that would have ended the mentor's own successful stays is
+moved (:mod:`.replay`), a recorded revision, so a limit that ends only some trials, and so never
+makes practice fail constantly, does not stay.
+
 A repair is on trial until the next constant failure: if no trial since it succeeded and none
 reached a place the failed trials before it never reached, it did not help — the net goes back to
 the version before it (a ``revert`` revision) and the next candidate the diagnosis supports is
@@ -57,7 +62,8 @@ from ..runtime.trace import Trace
 from .diagnosis import diagnose, is_evidence
 from .experience import DEFAULT_MARGIN, Experience, select_segments
 from .explore import ExploringLaw, law_noise
-from .repair import repair
+from .repair import move_limit, repair
+from .replay import replay_limits
 
 STATE_VERSION = 1
 Options = Callable[[int], Mapping[str, Any]]
@@ -96,6 +102,7 @@ class PracticeConfig:
     exam: bool = False
     exam_margin: int = 2
     novelty: float = 0.0
+    check_demonstrations: bool = True
 
     def __post_init__(self) -> None:
         counts = {"failures_in_a_row": 1, "window": 0, "success_streak": 1, "max_trials": 1, "seed": 0,
@@ -133,6 +140,7 @@ class PracticeState:
     trying: dict[str, Any] | None = None       # the repair on trial: its key, versions, what it must beat
     tried: list[str] = field(default_factory=list)
     last_refit_trial: int = -1
+    checked: bool = False                      # the definition was held against the demonstrations
     done: bool = False
     stop_reason: str = ""
     format_version: int = STATE_VERSION
@@ -248,6 +256,8 @@ class Practice:
         env = self.model.make_env()
         executor, explorer, version = None, None, -1
         judges = self.model.judges() if cfg.use_judges else {}
+        if cfg.check_demonstrations and state.trial == 0 and not state.checked:
+            self._check_definition(state)
         ran = 0
         while not state.done:
             if state.trial >= cfg.max_trials:
@@ -567,6 +577,22 @@ class Practice:
                 rate = sum(not t["success"] for t in since) / len(since)
                 return rate >= cfg.failure_rate
         return False
+
+    def _check_definition(self, state: PracticeState) -> None:
+        """Before the first trial: move the give-up rules that would have ended the mentor's own
+        successful demonstrations (:func:`~.replay.replay_limits`), each a recorded revision. Not put
+        on trial like a repair from failures: the demonstrations are the evidence, and a later
+        failure need not be the limit's."""
+        mentor = self.learners.mentor(self.model.apn)
+        if mentor is not None:
+            for f in replay_limits(self.model.apn, mentor):
+                fix = move_limit(self.model.apn, f)
+                key = f"demonstrations:{f.transition}"
+                for rev in fix.revisions:
+                    self._record(state, replace(rev, evidence={**rev.evidence, "candidate": key}),
+                                 {"findings": [f.to_json()]})
+        state.checked = True
+        self.save_state(state)
 
     def _repair(self, state: PracticeState) -> None:
         apn = self.model.apn
