@@ -114,7 +114,11 @@ KINDS = [
          "demonstrations just end, balanced)", (None,), _drop("t6")),
     # -- nunchaku ------------------------------------------------------------------------------------
     Kind("strict_release", "nunchaku", "t2 (release) demands more rod angle and speed: bounds scaled by the strength",
-         (1.3, 1.6), _scaled_release),
+         (1.3, 1.6), _scaled_release,
+         cannot="a release too strict fires late rather than never: at 1.3x the robot still flips in about 70 % "
+                "of trials, so practice never fails constantly; at 1.6x t2 is relearned, but the learned "
+                "condition releases early (its boundary lies between the mentor's releases and the states far "
+                "from them)"),
     Kind("early_giveup_regrasp", "nunchaku", "t7 gives up waiting for the catch after this many s (sound: 1.2)",
          (0.3, 0.15), _cond("t7", "dwell > {s}")),
     Kind("late_stop_nunchaku", "nunchaku", "t5 (success stop) asks the catch to be held this long (sound: 0.5 s)",
