@@ -17,6 +17,7 @@ from multiform.errors import InvalidInput
 from multiform.io import save_npz
 from multiform.learn.compiled import gp_mean_one
 from multiform.learn.gp import FAST_EXP_TOL, KIND, VERSION, GPLaw, neg_log_marginal_likelihood
+from multiform.learn.gp_posterior import draw_seed
 
 THETA5 = np.array([np.log(1.2), np.log(0.8), np.log(2.0), np.log(1.5), np.log(3.0), np.log(1.3), np.log(0.05)])
 
@@ -134,6 +135,9 @@ def _laws(X, Y):
         "dtc": GPLaw(sparse_threshold=100, n_inducing=150, sparse_method="dtc", theta=THETA5).fit(X, Y),
         "exact_linear": GPLaw(sparse_threshold=None, mean="linear", theta=THETA5).fit(X, Y),
         "fitc_linear": GPLaw(sparse_threshold=100, n_inducing=150, mean="linear", theta=THETA5).fit(X, Y),
+        "fitc_draws": GPLaw(sparse_threshold=100, n_inducing=60, n_draws=3, theta=THETA5).fit(X, Y),
+        "fitc_subset_noise": GPLaw(sparse_threshold=100, n_inducing=150, n_hyper=100, subset_noise=True,
+                                   theta=THETA5).fit(X, Y),
     }
 
 
@@ -223,6 +227,46 @@ def test_sparse_approximates_exact_on_a_smooth_function():
     mean, std = g.predict(Xq, return_std=True)
     np.testing.assert_allclose(mean, m_ex, rtol=1e-10, atol=1e-12)
     assert (np.abs(std - s_ex) / (g.sigma_f_ * g.y_scale_)).mean() < 0.05
+
+
+@pytest.mark.parametrize("mean", ["constant", "linear"])
+def test_bagged_posterior_is_the_mean_of_its_draws(mean):
+    """A law with n_draws = 3 predicts the mean of three single-draw laws fitted on the same data and
+    hyperparameters with the k-means seed of each draw; its variance is their mean variance."""
+    X, Y = data(500)
+    Xq = np.random.default_rng(3).uniform(-2.5, 2.5, (40, 5))
+    bag = GPLaw(sparse_threshold=100, n_inducing=40, n_draws=3, mean=mean, theta=THETA5).fit(X, Y)
+    members = [GPLaw(sparse_threshold=100, n_inducing=40, mean=mean, theta=THETA5,
+                     random_state=draw_seed(0, k)).fit(X, Y) for k in range(3)]
+    assert bag.inducing_.shape == (120, 5)
+    assert not any(np.allclose(members[0].inducing_, g.inducing_) for g in members[1:])
+    means, stds = zip(*(g.predict(Xq, return_std=True) for g in members))
+    mean_b, std_b = bag.predict(Xq, return_std=True)
+    np.testing.assert_allclose(mean_b, np.mean(means, axis=0), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(std_b ** 2, np.mean(np.square(stds), axis=0), rtol=1e-7, atol=1e-9)
+    assert np.abs(means[0] - means[1]).max() > 1e-3           # the draws differ: the mean is not trivial
+    fast_tol = FAST_EXP_TOL * float(bag.y_scale_.min())
+    for i, x in enumerate(Xq[:10]):
+        np.testing.assert_allclose(bag.predict_one(x), mean_b[i], atol=fast_tol)
+    with pytest.raises(ValueError, match="n_draws"):
+        GPLaw(n_draws=0).fit(X, Y)
+
+
+def test_subset_noise_solves_the_posterior_with_the_noise_scaled_to_the_subset_density():
+    """400 points, hyperparameters for a 100-point subset: the posterior is the one with the noise
+    variance ×4 (σn ×2), as a law with that noise fixed computes it; the fitted noise stays reported."""
+    X, Y = data(400)
+    Xq = np.random.default_rng(5).uniform(-2.5, 2.5, (30, 5))
+    theta2 = THETA5.copy()
+    theta2[-1] += np.log(2.0)
+    for kw in ({"sparse_threshold": None, "exact_var_max_n": None}, {"sparse_threshold": 100, "n_inducing": 80}):
+        g = GPLaw(theta=THETA5, n_hyper=100, subset_noise=True, **kw).fit(X, Y)
+        ref = GPLaw(theta=theta2, **kw).fit(X, Y)
+        assert g.noise_ == pytest.approx(np.exp(THETA5[-1])) and g.posterior_noise() == pytest.approx(2 * g.noise_)
+        for a, b in zip(g.predict(Xq, return_std=True), ref.predict(Xq, return_std=True)):
+            np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)
+        plain = GPLaw(theta=THETA5, n_hyper=100, **kw).fit(X, Y)
+        assert np.abs(plain.predict(Xq) - g.predict(Xq)).max() > 1e-3
 
 
 def test_sparse_variance_grows_away_from_the_data():

@@ -32,7 +32,8 @@ def law_to_arrays(law: GPLaw) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         if value is not None:
             arrays[key] = value
     params = {k: (list(v) if isinstance(v, (tuple, np.ndarray)) else v) for k, v in law.get_params().items()
-              if not (k == "theta" and v is None)}    # files without fixed hyperparameters read as before
+              if not (k == "theta" and v is None) and not (k == "n_draws" and v == 1)
+              and not (k == "inducing_focus" and v == 0.0) and not (k == "subset_noise" and not v)}    # files without these read as before
     meta = {"params": params, "mode": law.mode_, "var_mode": law.var_mode_,
             "n_train": int(law.n_train_), "n_features": int(law.n_features_in_),
             "n_outputs": int(law.n_outputs_), "y_1d": bool(law.y_1d_),
