@@ -56,11 +56,9 @@ class LawSettings:
     n_restarts: int = 1
     sparse_threshold: int | None = 3000
     n_inducing: int = 300
-    n_draws: int = 1                 # the sparse posterior is the mean of this many, each on its own draw of
-                                     # n_inducing points (:func:`~.gp_posterior.bagged_sparse_posterior`)
-    inducing_focus: float = 0.0      # this fraction of the inducing points where a first sparse fit explains the
-                                     # data worst (:func:`~.gp_posterior.focused_inducing`)
-    subset_noise: bool = False       # the posterior's noise variance scaled by n / n_hyper (GPLaw.posterior_noise)
+    subset_noise: bool = False       # the posterior's noise variance scaled by n / n_hyper: a fit that does not
+                                     # swing with the inducing count (GPLaw.posterior_noise; docs/measurements.md)
+    hyper_subsets: int = 1           # hyperparameters: the median over this many random subsets (GPLaw)
     max_train: int = 20000           # a random subset above this (the sparse posterior does not need more)
     mean: str | None = None          # GP mean function; None: the skill file's choice per law
     own_ratio: float = 1.0           # the robot's own samples at most this many times the mentor's (a random
@@ -99,8 +97,8 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
 
     def make() -> GPLaw:
         return GPLaw(n_hyper=s.n_hyper, n_restarts=s.n_restarts, sparse_threshold=s.sparse_threshold,
-                     n_inducing=s.n_inducing, n_draws=s.n_draws,
-                     inducing_focus=s.inducing_focus, subset_noise=s.subset_noise, mean=s.mean or spec.mean, random_state=seed, input_names=tuple(spec.inputs),
+                     n_inducing=s.n_inducing, subset_noise=s.subset_noise,
+                     hyper_subsets=s.hyper_subsets, mean=s.mean or spec.mean, random_state=seed, input_names=tuple(spec.inputs),
                      output_names=tuple(spec.outputs))
 
     def subset(idx: np.ndarray) -> np.ndarray:
