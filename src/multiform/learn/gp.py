@@ -205,8 +205,8 @@ class GPLaw(BaseEstimator, RegressorMixin):
         self.n_hyper_used_ = min(n, self.n_hyper) if lml is not None else 0
         self.mode_, self.var_mode_ = posterior_modes(n, self.sparse_threshold, self.exact_var_max_n)
         posterior = solve_posterior(Xs / self.length_scale_, Ys, self.sigma_f_ ** 2, self.posterior_noise() ** 2,
-                                    self.mode_,
-                                    self.var_mode_, self.n_inducing, self.sparse_method, self.random_state)
+                                    self.mode_, self.var_mode_, self.n_inducing, self.sparse_method,
+                                    self.random_state)
         for key, attr in FITTED_ARRAYS.items():
             setattr(self, attr, posterior[key])
         self.heldout_nrmse_ = None

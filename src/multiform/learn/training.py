@@ -56,8 +56,9 @@ class LawSettings:
     n_restarts: int = 1
     sparse_threshold: int | None = 3000
     n_inducing: int = 300
-    subset_noise: bool = False       # the posterior's noise variance scaled by n / n_hyper: a fit that does not
-                                     # swing with the inducing count (GPLaw.posterior_noise; docs/measurements.md)
+    subset_noise: bool = False       # the posterior's noise variance scaled by n / n_hyper (GPLaw.posterior_noise):
+                                     # with hyper_subsets=7, 10 demos lifted the pendulum on all three job seeds
+                                     # (docs/measurements.md); off until the 40-demo main job is measured
     hyper_subsets: int = 1           # hyperparameters: the median over this many random subsets (GPLaw)
     max_train: int = 20000           # a random subset above this (the sparse posterior does not need more)
     mean: str | None = None          # GP mean function; None: the skill file's choice per law
