@@ -17,6 +17,7 @@ from multiform.errors import InvalidInput
 from multiform.io import save_npz
 from multiform.learn.compiled import gp_mean_one
 from multiform.learn.gp import FAST_EXP_TOL, KIND, VERSION, GPLaw, neg_log_marginal_likelihood
+from multiform.learn.gp_hyper import optimise_hyperparameters
 
 THETA5 = np.array([np.log(1.2), np.log(0.8), np.log(2.0), np.log(1.5), np.log(3.0), np.log(1.3), np.log(0.05)])
 
@@ -134,6 +135,8 @@ def _laws(X, Y):
         "dtc": GPLaw(sparse_threshold=100, n_inducing=150, sparse_method="dtc", theta=THETA5).fit(X, Y),
         "exact_linear": GPLaw(sparse_threshold=None, mean="linear", theta=THETA5).fit(X, Y),
         "fitc_linear": GPLaw(sparse_threshold=100, n_inducing=150, mean="linear", theta=THETA5).fit(X, Y),
+        "fitc_subset_noise": GPLaw(sparse_threshold=100, n_inducing=150, n_hyper=100, subset_noise=True,
+                                   theta=THETA5).fit(X, Y),
     }
 
 
@@ -223,6 +226,45 @@ def test_sparse_approximates_exact_on_a_smooth_function():
     mean, std = g.predict(Xq, return_std=True)
     np.testing.assert_allclose(mean, m_ex, rtol=1e-10, atol=1e-12)
     assert (np.abs(std - s_ex) / (g.sigma_f_ * g.y_scale_)).mean() < 0.05
+
+
+def test_subset_noise_solves_the_posterior_with_the_noise_scaled_to_the_subset_density():
+    """400 points, hyperparameters for a 100-point subset: the posterior is the one with the noise
+    variance ×4 (σn ×2), as a law with that noise fixed computes it; the fitted noise stays reported."""
+    X, Y = data(400)
+    Xq = np.random.default_rng(5).uniform(-2.5, 2.5, (30, 5))
+    theta2 = THETA5.copy()
+    theta2[-1] += np.log(2.0)
+    for kw in ({"sparse_threshold": None, "exact_var_max_n": None}, {"sparse_threshold": 100, "n_inducing": 80}):
+        g = GPLaw(theta=THETA5, n_hyper=100, subset_noise=True, **kw).fit(X, Y)
+        ref = GPLaw(theta=theta2, **kw).fit(X, Y)
+        assert g.noise_ == pytest.approx(np.exp(THETA5[-1])) and g.posterior_noise() == pytest.approx(2 * g.noise_)
+        for a, b in zip(g.predict(Xq, return_std=True), ref.predict(Xq, return_std=True)):
+            np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)
+        plain = GPLaw(theta=THETA5, n_hyper=100, **kw).fit(X, Y)
+        assert np.abs(plain.predict(Xq) - g.predict(Xq)).max() > 1e-3
+
+
+def test_hyper_subsets_take_the_median_of_the_subsets_optima(tmp_path):
+    """Hyperparameters over 3 subsets of 100 points: each log hyperparameter is the median of the optima
+    found on those subsets (the first the single-subset fit's own), computed here one by one."""
+    X, Y = data(400)
+    g1 = GPLaw(n_hyper=100, n_restarts=0, sparse_threshold=None).fit(X, Y)
+    g3 = GPLaw(n_hyper=100, n_restarts=0, sparse_threshold=None, hyper_subsets=3).fit(X, Y)
+    Xs, Ys = standardised(g3, X, Y)
+    thetas = [optimise_hyperparameters(Xs, Ys, np.random.default_rng(s), True, 100, 0, 200)[0]
+              for s in (0, [0, 1], [0, 2])]
+    assert not np.allclose(thetas[0], thetas[1], rtol=1e-3)           # the subsets disagree
+    np.testing.assert_allclose(np.log(g1.length_scale_), thetas[0][:-2], rtol=1e-10)
+    med = np.median(thetas, axis=0)
+    np.testing.assert_allclose(np.log(g3.length_scale_), med[:-2], rtol=1e-10)
+    np.testing.assert_allclose(np.log([g3.sigma_f_, g3.noise_]), med[-2:], rtol=1e-10)
+    g3.save(tmp_path / "law.npz")
+    h = GPLaw.load(tmp_path / "law.npz")
+    assert h.get_params() == g3.get_params() and h.hyper_subsets == 3
+    np.testing.assert_array_equal(h.predict(X[:20]), g3.predict(X[:20]))
+    with pytest.raises(ValueError, match="hyper_subsets"):
+        GPLaw(hyper_subsets=0).fit(X, Y)
 
 
 def test_sparse_variance_grows_away_from_the_data():

@@ -32,7 +32,10 @@ def law_to_arrays(law: GPLaw) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         if value is not None:
             arrays[key] = value
     params = {k: (list(v) if isinstance(v, (tuple, np.ndarray)) else v) for k, v in law.get_params().items()
-              if not (k == "theta" and v is None)}    # files without fixed hyperparameters read as before
+              if not (k == "theta" and v is None) and not (k == "subset_noise" and not v)
+              and not (k == "hyper_subsets" and v == 1)}
+    # (files without fixed hyperparameters, subset noise or hyperparameter subsets read as before and by
+    # earlier versions)
     meta = {"params": params, "mode": law.mode_, "var_mode": law.var_mode_,
             "n_train": int(law.n_train_), "n_features": int(law.n_features_in_),
             "n_outputs": int(law.n_outputs_), "y_1d": bool(law.y_1d_),

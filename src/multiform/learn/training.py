@@ -56,6 +56,10 @@ class LawSettings:
     n_restarts: int = 1
     sparse_threshold: int | None = 3000
     n_inducing: int = 300
+    subset_noise: bool = False       # the posterior's noise variance scaled by n / n_hyper (GPLaw.posterior_noise):
+                                     # with hyper_subsets=7, 10 demos lifted the pendulum on all three job seeds
+                                     # (docs/measurements.md); off until the 40-demo main job is measured
+    hyper_subsets: int = 1           # hyperparameters: the median over this many random subsets (GPLaw)
     max_train: int = 20000           # a random subset above this (the sparse posterior does not need more)
     mean: str | None = None          # GP mean function; None: the skill file's choice per law
     own_ratio: float = 1.0           # the robot's own samples at most this many times the mentor's (a random
@@ -94,7 +98,8 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
 
     def make() -> GPLaw:
         return GPLaw(n_hyper=s.n_hyper, n_restarts=s.n_restarts, sparse_threshold=s.sparse_threshold,
-                     n_inducing=s.n_inducing, mean=s.mean or spec.mean, random_state=seed, input_names=tuple(spec.inputs),
+                     n_inducing=s.n_inducing, subset_noise=s.subset_noise,
+                     hyper_subsets=s.hyper_subsets, mean=s.mean or spec.mean, random_state=seed, input_names=tuple(spec.inputs),
                      output_names=tuple(spec.outputs))
 
     def subset(idx: np.ndarray) -> np.ndarray:
