@@ -27,7 +27,7 @@ import numpy as np
 
 from ..demos.episode import Episode
 from ..learn.views import stays, success_mask, value_matrix
-from ..petri.guard import to_text
+from ..petri.guard import parse_guard, to_text
 from ..petri.net import APN, is_clock
 from ..petri.revision import set_condition
 from .compare import _GT, SLACK, Finding, _atoms, _eval, _normal, _vars, moved_condition, moved_state_bound
@@ -125,7 +125,6 @@ def _moved_clock(expr: tuple, op: Any, stays_cols: Sequence[dict[str, np.ndarray
     whole number), or None if the atom is not an upper limit on a clock."""
     if op not in _GT:
         return None
-    from ..petri.guard import parse_guard
     g = parse_guard(to_text(expr))
     top = max(float(np.nanmax(g.evaluate_arrays(_columns(g, cols)))) for cols in stays_cols)
     if all(n.startswith("fires_") for n in g.variables):
@@ -194,9 +193,9 @@ def _simulate_repeats(apn: APN, place: str, cols: dict[str, np.ndarray], counts:
         if not own or k >= n:
             return dwell
         hit = None
+        env = {**cols, **{f"fires_{x}": c for x, c in counts.items()}, "dwell": dwell, f"dwell_{place}": dwell}
         for t in own:
             g = t.condition.guard
-            env = {**cols, **{f"fires_{x}": c for x, c in counts.items()}, "dwell": dwell, f"dwell_{place}": dwell}
             held = np.flatnonzero(g.evaluate_arrays({v: env[v][k:] for v in g.variables}) > 0)
             if len(held) and (hit is None or held[0] < hit[1]):
                 hit = (t.id, int(held[0]))
