@@ -492,16 +492,20 @@ class Practice:
         last = self._plain(state)[-n:]
         return sum(t["success"] for t in last) / len(last) if last else 0.0
 
+    def _current_plain(self, state: PracticeState) -> list[dict[str, Any]]:
+        """The plain trials the net as it is now ran."""
+        return [t for t in self._plain(state) if t.get("net_version") == self.model.version]
+
     def _falls_short(self, state: PracticeState) -> bool:
         """The plain trials of the net as it is now fail more often than the target allows: the
         chance of that many failures at a success rate of ``target_rate`` is below ``revert_p``
         (one-sided binomial test)."""
         from scipy.stats import binomtest
         cfg = self.config
-        current = [t for t in self._plain(state) if t.get("net_version", self.model.version) == self.model.version]
+        current = self._current_plain(state)
         failures = sum(not t["success"] for t in current)
-        if not current or failures == 0 or cfg.target_rate >= 1.0:
-            return bool(current) and failures > 0
+        if failures == 0 or cfg.target_rate >= 1.0:
+            return failures > 0
         p = binomtest(failures, len(current), 1.0 - cfg.target_rate, alternative="greater").pvalue
         return bool(p < cfg.revert_p)
 
@@ -509,8 +513,7 @@ class Practice:
         """The last ``target_window`` plain trials, all of the net as it is now, reach the target (a
         window reaching back before a refit would credit the new laws with the old ones' successes)."""
         cfg = self.config
-        current = [t for t in self._plain(state) if t.get("net_version") == self.model.version]
-        return cfg.target_rate > 0 and len(current) >= cfg.target_window \
+        return cfg.target_rate > 0 and len(self._current_plain(state)) >= cfg.target_window \
             and self._plain_rate(state, cfg.target_window) >= cfg.target_rate
 
     def _watch(self, state: PracticeState, before_version: int, version: int) -> None:
