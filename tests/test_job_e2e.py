@@ -180,17 +180,18 @@ def _learning_practice(model_dir: Path, folder: Path):
     from multiform.tasks import pendulum as task
     sc = {s["name"]: s for s in task.scenarios()}["c_keep"]
     cfg = PracticeConfig(**{**sc["config"], "max_trials": 12, "refit_every": 4, "refit_min_segments": 1,
-                            "revert_window": 2, "mentor_every": 3, "mentor_budget": 2, "seed": 4,
-                            "target_rate": 0.0})     # refit even when the skill already succeeds
+                            "revert_window": 2, "mentor_every": 3, "mentor_budget": 2, "takeover_budget": 2,
+                            "seed": 4, "target_rate": 0.0})     # refit even when the skill already succeeds
     return Practice(SkillModel(model_dir), folder, cfg, options=sc["options"], perturb=sc["perturb"], name="c_keep",
-                    mentor=sc["mentor"]())
+                    mentor=sc["mentor"](), takeover=sc["takeover"]())
 
 
 def test_learning_from_practice_resumes_as_if_never_stopped(run, tmp_path):
     """Practice that learns from its own graded trials, stopped after 5 trials and run again, ends where
     an uninterrupted run ends: the same trials, the same own segments with their provenance, the same
-    refits and mentor grades; the own-experience data of the first part is kept, nothing is added twice."""
-    states, segments, histories = [], [], []
+    refits, mentor grades and takeovers; the own-experience data of the first part is kept, nothing is
+    added twice."""
+    states, segments, histories, takeovers = [], [], [], []
     for stop in (None, 5):
         model_dir = tmp_path / f"model_{stop}"
         shutil.copytree(run / "model", model_dir, ignore=shutil.ignore_patterns("practice", "experience"))
@@ -210,7 +211,11 @@ def test_learning_from_practice_resumes_as_if_never_stopped(run, tmp_path):
         segments.append(segs)
         histories.append([(json.loads(line)["operator"], json.loads(line)["target"])
                           for line in (model_dir / "skill.history.jsonl").read_text().splitlines()])
+        kept = sorted(p.name for p in (model_dir / "experience" / "takeovers").glob("*.h5"))
+        assert kept == [f"c_keep_{t['trial']}.h5" for t in state.takeovers]
+        takeovers.append(list(state.takeovers))
     assert states[0] == states[1] and segments[0] == segments[1] and histories[0] == histories[1]
+    assert takeovers[0] == takeovers[1]
     assert len(states[0]) == 12 and segments[0], "no own segment in 12 trials: nothing was learned from"
     assert any(op == "refit_law" for op, _ in histories[0])
     assert sum("mentor" in t for t in states[0]) == 2

@@ -74,16 +74,13 @@ def practise(model: Any, task: TaskLike, scenario: str | None = None, out: str |
     """Practise the model through one of the task's scenarios (default: its first); constant
     failure triggers diagnosis and a repair of the net, recorded as a revision. Returns the
     :class:`~multiform.adapt.practice.PracticeState` (trials, revisions, why it stopped)."""
-    from .adapt.practice import Practice, PracticeConfig
+    from .adapt.practice import Practice
     model = open_model(model) if isinstance(model, (str, os.PathLike)) else model
     task = load_task(task)
     scenarios = {s["name"]: s for s in task.scenarios()}
     sc = scenarios[scenario] if scenario is not None else next(iter(scenarios.values()))
-    cfg = PracticeConfig(max_trials=max_trials, seed=seed + sc.get("seed", 0), **sc.get("config", {}))
     folder = Path(out) if out is not None else Path(model.path) / "practice" / sc["name"]
-    practice = Practice(model, folder, cfg, options=sc["options"], perturb=sc.get("perturb"), name=sc["name"],
-                        mentor=sc["mentor"]() if sc.get("mentor") else None)
-    return practice.run(progress=progress)
+    return Practice.for_scenario(model, folder, sc, max_trials, seed).run(progress=progress)
 
 
 def evaluate(model: Any, task: TaskLike, trials: int = 200, seed: int = 0, push_fraction: float = 0.5,

@@ -372,7 +372,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_practice(args: argparse.Namespace) -> int:
-    from .adapt.practice import Practice, PracticeConfig
+    from .adapt.practice import Practice
     from .model import SkillModel
     from .task import load_task, task_for_env
     task = load_task(args.task) if args.task else None      # first: a user's task registers its env
@@ -384,10 +384,8 @@ def cmd_practice(args: argparse.Namespace) -> int:
         raise InvalidInput(f"unknown scenario {args.scenario!r}; {args.task} has: {', '.join(scen)}",
                            element="--scenario")
     sc = scen[args.scenario]
-    cfg = PracticeConfig(max_trials=args.max_trials, seed=args.seed + sc.get("seed", 0), **sc.get("config", {}))
     folder = Path(args.out or Path(args.model) / "practice" / args.scenario)
-    practice = Practice(model, folder, cfg, options=sc["options"], perturb=sc.get("perturb"), name=sc["name"],
-                        mentor=sc["mentor"]() if sc.get("mentor") else None, observe=_views(args, folder / "view"))
+    practice = Practice.for_scenario(model, folder, sc, args.max_trials, args.seed, observe=_views(args, folder / "view"))
 
     def show(state, trial):
         mark = "ok  " if trial["success"] else "FAIL"
@@ -397,6 +395,8 @@ def cmd_practice(args: argparse.Namespace) -> int:
         if "mentor" in trial:
             m = trial["mentor"]
             print(f"  the mentor graded it: {m['agree']} of {m['stays']} stays as the robot did", flush=True)
+        if trial.get("takeover", {}).get("time") is not None:
+            print(f"  the mentor took over where the robot knew least, at {trial['takeover']['time']} s", flush=True)
         if state.revisions and state.revisions[-1].get("after_trial") == trial["trial"]:
             r = state.revisions[-1]
             print(f"  revision {r['version']}: {r['operator']} {r['target']} — {r['reason']}", flush=True)

@@ -27,7 +27,7 @@ from typing import Any
 from tqdm import tqdm
 
 from .adapt.evaluation import Evaluator, TrialSpec, Variant
-from .adapt.practice import Practice, PracticeConfig
+from .adapt.practice import Practice
 from .demos.dataset import read_dataset, write_dataset
 from .demos.episode import Episode
 from .demos.record import demo_push, record_many
@@ -153,10 +153,8 @@ class Job:
             limit = self.cfg.practice_max_trials if not sc.get("learn") else self.cfg.practice_budget - used
             if limit <= 0:
                 continue
-            cfg = PracticeConfig(max_trials=limit, seed=self.cfg.seed + sc.get("seed", 0), **sc.get("config", {}))
-            mentor = sc["mentor"]() if sc.get("mentor") else None
-            practice = Practice(model, folder, cfg, options=sc["options"], perturb=sc.get("perturb"), name=sc["name"],
-                                mentor=mentor)
+            practice = Practice.for_scenario(model, folder, sc, limit, self.cfg.seed)
+            cfg = practice.config
             with self._bar(cfg.max_trials, f"practice {sc['name']}") as bar:
                 bar.update(practice.load_state().trial)
                 state = practice.run(progress=lambda st, tr: bar.update(1))
@@ -299,7 +297,8 @@ def _learning_summary(state: Any) -> dict[str, Any]:
     graded = state.mentor_graded
     stays = sum(g["stays"] for g in graded)
     return {"own_segments": sum(t.get("own_segments", 0) for t in state.trials),
-            "mentor_labelled_trials": len(graded),
+            "mentor_labelled_trials": len({g["trial"] for g in graded} | {t["trial"] for t in state.takeovers}),
+            "mentor_takeovers": len(state.takeovers),
             "mentor_agreement": {"stays": stays, "agree": sum(g["agree"] for g in graded),
                                  "rate": round(sum(g["agree"] for g in graded) / stays, 4) if stays else None},
             "plain_trials": len(plain), "plain_successes": sum(t["success"] for t in plain),

@@ -98,8 +98,9 @@ class Task:
     def scenarios(self) -> list[dict[str, Any]]:
         """Practice scenarios, in order: ``name``, ``title``, ``options`` (seed -> reset options) and
         optionally ``perturb`` (trial -> perturbation), ``config`` (PracticeConfig fields), ``seed``,
-        ``mentor`` (factory of a grader), ``learn``. Default: one scenario, ``practice``, repairing on
-        three failures in a row."""
+        ``mentor`` (factory of a grader), ``takeover`` (factory of the mentor's takeover of a failed trial:
+        trace, tick -> a demonstration from there; see :mod:`multiform.adapt.takeover`), ``learn``.
+        Default: one scenario, ``practice``, repairing on three failures in a row."""
         return [{"name": "practice", "title": "practice from the task's trial starts", "options": self.trial_options,
                  "config": {"failures_in_a_row": 3, "success_streak": 5}}]
 

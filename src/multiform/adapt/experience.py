@@ -18,6 +18,8 @@ Stored in the model directory, apart from the mentor's data::
                                      net version and the fit of each law that ran it, place,
                                      start/end, judge score, the mentor's verdict if any
     experience/traces/<source>.npz   the trial's trace (pickle-free, written atomically)
+    experience/takeovers/<source>.h5 the mentor's demonstration from where the robot got stuck in
+                                     that trial (:mod:`.takeover`; the demonstration file format)
 """
 
 from __future__ import annotations
@@ -122,6 +124,23 @@ class Experience:
         path = self.trace_path(source)
         if not path.exists():
             trace.save(path)
+
+    def takeover_path(self, source: str) -> Path:
+        return self.folder / "takeovers" / f"{source}.h5"
+
+    def add_takeover(self, episode: Episode, source: str, skill: str, env_name: str) -> None:
+        """Keep the mentor's demonstration from where trial ``source`` got stuck (once)."""
+        from ..demos.dataset import write_dataset
+        path = self.takeover_path(source)
+        if not path.exists():
+            path.parent.mkdir(parents=True, exist_ok=True)
+            write_dataset(path, [episode], skill, env_name, mentor="takeover")
+
+    def takeovers(self) -> dict[str, Episode]:
+        """The mentor's demonstrations from where practice trials got stuck, by trial id."""
+        from ..demos.dataset import read_dataset
+        folder = self.folder / "takeovers"
+        return {p.stem: next(iter(read_dataset(p))) for p in sorted(folder.glob("*.h5"))} if folder.exists() else {}
 
     def episode(self, source: str) -> Episode:
         return Trace.load(self.trace_path(source)).to_episode()

@@ -21,6 +21,8 @@ With ``learn`` (learning from practice, the paper's third form in full) the loop
 * has the mentor grade every ``mentor_every``-th trial, up to ``mentor_budget`` trials, from the
   trial's trace alone; the labels revise the judges, and each label that contradicts the robot's
   own grade is counted;
+* has the mentor take over failed trials, up to ``takeover_budget`` (:mod:`.takeover`): a
+  demonstration from where the robot knew least, learned from at the next refit;
 * watches every revision: if the robot's own success rate over the next ``revert_window`` plain
   trials is clearly worse than over the ``revert_window`` before it (one-sided Fisher test at
   ``revert_p``), the net goes back to the version before (a ``revert`` revision). With ``exam``
@@ -102,12 +104,13 @@ class PracticeConfig:
     exam: bool = False
     exam_margin: int = 2
     novelty: float = 0.0
+    takeover_budget: int = 0
     check_demonstrations: bool = True
 
     def __post_init__(self) -> None:
         counts = {"failures_in_a_row": 1, "window": 0, "success_streak": 1, "max_trials": 1, "seed": 0,
                   "explore_every": 0, "refit_every": 1, "refit_min_segments": 1, "mentor_every": 0,
-                  "mentor_budget": 0, "target_window": 1, "revert_window": 1, "exam_margin": 1}
+                  "mentor_budget": 0, "takeover_budget": 0, "target_window": 1, "revert_window": 1, "exam_margin": 1}
         for name, low in counts.items():
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= 1_000_000:
@@ -136,6 +139,7 @@ class PracticeState:
     failed_since_repair: list[int] = field(default_factory=list)
     repairs_without_effect: int = 0
     mentor_graded: list[dict[str, Any]] = field(default_factory=list)
+    takeovers: list[dict[str, Any]] = field(default_factory=list)
     watch: dict[str, Any] | None = None
     trying: dict[str, Any] | None = None       # the repair on trial: its key, versions, what it must beat
     tried: list[str] = field(default_factory=list)
@@ -179,6 +183,7 @@ class PracticeState:
 
 
 MentorGrader = Callable[[Episode, APN], list[SegmentLabel]]
+Takeover = Callable[[Trace, int], "Episode | None"]
 
 
 class Practice:
@@ -190,7 +195,8 @@ class Practice:
 
     def __init__(self, model: SkillModel, folder: str | Path, config: PracticeConfig | None = None,
                  options: Options | None = None, perturb: Perturb | None = None, name: str = "practice",
-                 mentor: MentorGrader | None = None, observe: Callable[[int, Executor], Any] | None = None):
+                 mentor: MentorGrader | None = None, observe: Callable[[int, Executor], Any] | None = None,
+                 takeover: Takeover | None = None):
         self.model = model
         self.observe = observe          # trial index, executor -> an executor observer (e.g. the live view) or None
         self.folder = Path(folder)
@@ -199,8 +205,21 @@ class Practice:
         self.perturb = perturb
         self.name = name
         self.mentor = mentor
+        self.takeover = takeover
         self.learners = ModelLearners(model, seed=self.config.seed)
         self.experience = Experience(model.path)
+
+    @classmethod
+    def for_scenario(cls, model: SkillModel, folder: str | Path, scenario: Mapping[str, Any], max_trials: int,
+                     seed: int = 0, observe: Callable[[int, Executor], Any] | None = None) -> Practice:
+        """Practice through one of a task's scenarios (``Task.scenarios()``: name, options, perturb,
+        config, seed offset, and the mentor's grader and takeover factories where it learns)."""
+        sc = scenario
+        cfg = PracticeConfig(max_trials=max_trials, seed=seed + sc.get("seed", 0), **sc.get("config", {}))
+        mentor = sc["mentor"]() if sc.get("mentor") else None
+        takeover = sc["takeover"]() if sc.get("takeover") and cfg.takeover_budget else None
+        return cls(model, folder, cfg, options=sc["options"], perturb=sc.get("perturb"), name=sc["name"],
+                   mentor=mentor, observe=observe, takeover=takeover)
 
     # -- state -------------------------------------------------------------------------------------
     @property
@@ -287,7 +306,7 @@ class Practice:
                 view.close()
             summary = self._summary(k, draw, version, trace, grade, success, explores, t0)
             if cfg.learn and grade is not None:
-                summary.update(self._learn_from(state, k, trace, grade, executor.apn))
+                summary.update(self._learn_from(state, k, trace, grade, executor.apn, success))
                 if "revised" in summary.get("mentor", {}):
                     judges = self.model.judges()
             state.trials.append(summary)
@@ -372,7 +391,8 @@ class Practice:
         return Executor(executor.apn, executor.env, laws, self.model.conditions(), executor.inverse_model,
                         net_version=executor.net_version)
 
-    def _learn_from(self, state: PracticeState, k: int, trace: Trace, grade: Any, apn: APN) -> dict[str, Any]:
+    def _learn_from(self, state: PracticeState, k: int, trace: Trace, grade: Any, apn: APN,
+                    success: bool = True) -> dict[str, Any]:
         """The mentor's grade (on schedule), then the own segments the trial adds."""
         cfg, out = self.config, {}
         source = self.source(k)
@@ -383,6 +403,11 @@ class Practice:
             verdicts, account = self._mentor_grades(source, trace, grade, apn)
             state.mentor_graded.append({"trial": k, **account})
             out["mentor"] = account
+        taken = {t["trial"] for t in state.takeovers}
+        if (self.takeover is not None and not success and is_evidence(trace.outcome) and k not in taken
+                and len(taken) < cfg.takeover_budget):
+            out["takeover"] = self._take_over(source, trace, apn)
+            state.takeovers.append({"trial": k, **out["takeover"]})
         own = select_segments(apn, trace, grade, source, self.name, k, cfg.margin, verdicts)
         if own:
             self.experience.add(trace, own, source)
@@ -415,6 +440,19 @@ class Practice:
                                   for p, d in info.items()}
         return verdicts, account
 
+    def _take_over(self, source: str, trace: Trace, apn: APN) -> dict[str, Any]:
+        """The mentor demonstrates from where the failed trial got stuck (:mod:`.takeover`)."""
+        from .takeover import stuck_tick
+        tick = stuck_tick(trace, apn, self.model.laws(apn))
+        if tick is None:
+            return {"tick": None}
+        ep = self.takeover(trace, tick)
+        if ep is None:
+            return {"tick": tick}
+        self.experience.add_takeover(ep, source, apn.name, apn.env)
+        return {"tick": tick, "time": round(tick * trace.dt, 3), "samples": int(ep.num_samples),
+                "outcome": getattr(ep, "outcome", "")}
+
     def _mentor_sources(self) -> list[str]:
         return sorted({r.source for r in self.model.labels if not r.source.startswith("demo_")
                        and is_mentor(r.labeller)})
@@ -433,17 +471,20 @@ class Practice:
             return
         apn = self.model.apn
         segments = self.experience.segments()
+        takeovers = self.experience.takeovers() if cfg.takeover_budget else {}
         made = []
         for law in apn.laws:
             mine = [s for s in segments if law in s.laws]
             seen = self._fitted_sources(law)
             new = [s for s in mine if s.source not in seen]
-            if len(new) < cfg.refit_min_segments:
+            new_takeovers = sorted(set(takeovers) - self._fitted_sources(law, "takeovers"))
+            if len(new) < cfg.refit_min_segments and not new_takeovers:
                 continue
             own = self.experience.law_episodes(law, mine)
             current = self.model.laws(apn).get(law)
             mentor_net = self.model.history.version(0)
-            refitted, info = fit_law(mentor_net, self.model.episodes, law, seed=cfg.seed, own=own, own_apn=apn,
+            refitted, info = fit_law(mentor_net, self.model.episodes + [takeovers[s] for s in sorted(takeovers)], law,
+                                     seed=cfg.seed, own=own, own_apn=apn,
                                      current=current, mentor_law=self.model.laws(mentor_net).get(law),
                                      settings=LawSettings(own_novelty=cfg.novelty))
             fit = self.learners.fresh_law(law)
@@ -453,20 +494,24 @@ class Practice:
                         "mentor_samples": info.get("n_mentor"),
                         "heldout_nrmse_before": _round(info.get("heldout_nrmse_current")),
                         "heldout_nrmse_after": _round(info.get("heldout_nrmse")),
-                        "sources": sorted({s.source for s in mine}), "after_trial": state.trial - 1}
+                        "sources": sorted({s.source for s in mine}), "after_trial": state.trial - 1,
+                        **({"takeovers": sorted(takeovers)} if takeovers else {})}
+            taken = f" and {len(new_takeovers)} new takeovers by the mentor" if new_takeovers else ""
             _, rev = refit_law(apn, law, fit, f"{len(new)} new segments of its own graded successful "
-                                              f"(score >= {0.5 + cfg.margin:.2f}); refit from the mentor's and its own data",
+                                              f"(score >= {0.5 + cfg.margin:.2f}){taken}; refit from the mentor's "
+                                              f"and its own data",
                                evidence)
             made.append(self._record(state, rev, {"refit": info}))
             apn = self.model.apn
         if made:
             self._watch(state, made[0] - 1, made[-1])
 
-    def _fitted_sources(self, law: str) -> set[str]:
-        """The trials whose own segments the last recorded refit of ``law`` learned from."""
+    def _fitted_sources(self, law: str, key: str = "sources") -> set[str]:
+        """The trials whose own segments (``key`` "takeovers": whose takeovers) the last recorded
+        refit of ``law`` learned from."""
         for r in reversed(self.model.history.revisions()):
             if r.operator == "refit_law" and r.target == law:
-                return set(r.evidence.get("sources", ()))
+                return set(r.evidence.get(key, ()))
         return set()
 
     def _record(self, state: PracticeState, rev: Revision, diagnosis: dict[str, Any] | None = None) -> int:

@@ -124,7 +124,25 @@ OWN_NOVELTY = 0.5                  # own samples join a law only where its mento
                                    # those of swing-ups after a push (the mentor showed three), where the law
                                    # failed: it did not brake a pendulum spinning over the top
 MENTOR_EVERY = 3                   # the mentor grades every third trial of practice under evaluation conditions
-MENTOR_BUDGET = 20                 # and at most this many
+MENTOR_BUDGET = 10                 # and at most this many
+
+
+def mentor_takeover():
+    """The scripted mentor taking the joystick where a failed practice trial got stuck
+    (:mod:`multiform.adapt.takeover`): a demonstration on the trial's own pendulum, from the
+    pendulum's state and the hand's position at that tick (the arm at rest), for at most 20 s."""
+    import gymnasium as gym
+
+    from ..demos.record import record_episode
+    env = gym.make(ENV_ID, **DEMO_ENV_KWARGS)
+    limit = env.unwrapped.x_limit - 0.01
+
+    def demonstrate(trace: Trace, tick: int):
+        state = {n: float(trace.value(n)[tick]) for n in ("theta", "omega", "x")}
+        options = {**(trace.options or {}), "theta0": state["theta"], "omega0": state["omega"],
+                   "x0": min(max(state["x"], -limit), limit)}
+        return record_episode(env, make_mentor(), seed=int(trace.seed), options=options, max_steps=25_000)
+    return demonstrate
 
 
 def mentor_grader():
@@ -146,11 +164,11 @@ def scenarios() -> list[dict[str, Any]]:
         {"name": "c_keep", "title": "(c) practice as evaluated (random starts, pushes on half the trials), "
                                     "learning from its own graded experience",
          "options": trial_options, "perturb": lambda k: _push_in_place(2_000 + k) if k % 4 < 2 else None,
-         "mentor": mentor_grader, "learn": True,
+         "mentor": mentor_grader, "takeover": mentor_takeover, "learn": True,
          "config": {"failures_in_a_row": 3, "success_streak": 10**6, "learn": True, "explore": 0.5,
                     "explore_every": 2, "refit_every": 10, "mentor_every": MENTOR_EVERY,
                     "mentor_budget": MENTOR_BUDGET, "target_rate": TARGET_SUCCESS_RATE, "target_window": 20,
-                    "revert_window": 10, "exam": True, "novelty": OWN_NOVELTY}, "seed": 2},
+                    "revert_window": 10, "exam": True, "novelty": OWN_NOVELTY, "takeover_budget": 10}, "seed": 2},
     ]
 
 

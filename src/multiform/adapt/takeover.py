@@ -1,0 +1,63 @@
+"""The mentor takes over a failed practice trial: a demonstration from where the robot got stuck.
+
+A person watching a student practise does not only say "that failed": where the student got stuck,
+the teacher takes the controls and shows what to do from there (interactive imitation learning:
+Ross et al.'s DAgger, Kelly et al.'s HG-DAgger). The robot's laws fail where the mentor's
+demonstrations never went (a pendulum spinning after a push, the hand at the end of its stroke);
+its own graded successes cannot teach those states, since it rarely succeeds from them.
+
+When the mentor grades a practice trial that failed, it also demonstrates from the state of that
+trial where the robot knew least: the tick at which the law running then was least sure of its
+command (its posterior standard deviation against its prior's, :func:`stuck_tick`). The task says
+how a demonstration starts from a state (a ``takeover`` callable: the trial's trace and the tick →
+an :class:`~multiform.demos.episode.Episode` recorded by the mentor, or None). The demonstration is
+the mentor's data, kept apart from the demonstrations it was taught with (``experience/takeovers``)
+and learned from at the next refit of the laws; it costs no more of the mentor's time than the
+grading, which it comes with.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from ..petri.net import APN
+from ..runtime.trace import Trace
+
+STEP = 0.02          # s between the ticks weighed
+MARGIN = 1.0         # s: not in the first or last second of the trial (no history to show, no time to act)
+
+
+def stuck_tick(trace: Trace, apn: APN, laws: Mapping[str, Any]) -> int | None:
+    """The tick of ``trace`` at which the law that ran was least sure of its command (posterior std
+    over prior std), or None if no law ran long enough to weigh."""
+    n = len(trace.obs)
+    step = max(1, int(round(STEP / trace.dt)))
+    lo, hi = int(MARGIN / trace.dt), n - int(MARGIN / trace.dt)
+    if hi <= lo:
+        return None
+    firings = sorted((f.tick, f.transition) for f in trace.firings)
+    ticks = np.arange(lo, hi, step)
+    active = np.full(len(ticks), "", dtype=object)
+    for tick, tid in firings:
+        law = apn.transition(tid).law if tid in apn.transition_ids else None
+        active[ticks >= tick] = law or ""
+    best, where = -1.0, None
+    for name in sorted(set(active) - {""}):
+        law = laws.get(name)
+        if law is None:
+            continue
+        at = ticks[active == name]
+        try:
+            X = np.column_stack([trace.value(v)[at] for v in apn.laws[name].inputs]).astype(np.float64)
+        except (KeyError, ValueError):
+            continue
+        _, std = law.predict(X, return_std=True)
+        prior = float(law.sigma_f_) * np.asarray(law.y_scale_, dtype=float).reshape(-1)
+        rel = (np.asarray(std).reshape(len(at), -1) / prior).max(axis=1)
+        i = int(np.argmax(rel))
+        if rel[i] > best:
+            best, where = float(rel[i]), int(at[i])
+    return where
