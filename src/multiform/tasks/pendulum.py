@@ -125,6 +125,8 @@ OWN_NOVELTY = 0.5                  # own samples join a law only where its mento
                                    # failed: it did not brake a pendulum spinning over the top
 MENTOR_EVERY = 3                   # the mentor grades every third trial of practice under evaluation conditions
 MENTOR_BUDGET = 10                 # and at most this many
+TAKEOVER_BUDGET = 10               # failed trials the mentor takes over: with its grades at most 20 trials of its
+                                   # time (job seed 2, 10 demos: 71.0 % without takeovers, 92.5 % with)
 
 
 def mentor_takeover():
@@ -168,7 +170,7 @@ def scenarios() -> list[dict[str, Any]]:
          "config": {"failures_in_a_row": 3, "success_streak": 10**6, "learn": True, "explore": 0.5,
                     "explore_every": 2, "refit_every": 10, "mentor_every": MENTOR_EVERY,
                     "mentor_budget": MENTOR_BUDGET, "target_rate": TARGET_SUCCESS_RATE, "target_window": 20,
-                    "revert_window": 10, "exam": True, "novelty": OWN_NOVELTY, "takeover_budget": 10}, "seed": 2},
+                    "revert_window": 10, "exam": True, "novelty": OWN_NOVELTY, "takeover_budget": TAKEOVER_BUDGET}, "seed": 2},
     ]
 
 
