@@ -451,7 +451,7 @@ class Practice:
             return {"tick": tick}
         self.experience.add_takeover(ep, source, apn.name, apn.env)
         return {"tick": tick, "time": round(tick * trace.dt, 3), "samples": int(ep.num_samples),
-                "outcome": getattr(ep, "outcome", "")}
+                "outcome": ep.outcome}
 
     def _mentor_sources(self) -> list[str]:
         return sorted({r.source for r in self.model.labels if not r.source.startswith("demo_")
@@ -483,7 +483,7 @@ class Practice:
             own = self.experience.law_episodes(law, mine)
             current = self.model.laws(apn).get(law)
             mentor_net = self.model.history.version(0)
-            refitted, info = fit_law(mentor_net, self.model.episodes + [takeovers[s] for s in sorted(takeovers)], law,
+            refitted, info = fit_law(mentor_net, self.model.episodes + list(takeovers.values()), law,
                                      seed=cfg.seed, own=own, own_apn=apn,
                                      current=current, mentor_law=self.model.laws(mentor_net).get(law),
                                      settings=LawSettings(own_novelty=cfg.novelty))

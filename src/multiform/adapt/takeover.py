@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ..learn.views import value_matrix
 from ..petri.net import APN
 from ..runtime.trace import Trace
 
@@ -36,24 +37,19 @@ def stuck_tick(trace: Trace, apn: APN, laws: Mapping[str, Any]) -> int | None:
     n = len(trace.obs)
     step = max(1, int(round(STEP / trace.dt)))
     lo, hi = int(MARGIN / trace.dt), n - int(MARGIN / trace.dt)
-    if hi <= lo:
-        return None
     firings = sorted((f.tick, f.transition) for f in trace.firings)
+    if hi <= lo or not firings:
+        return None
     ticks = np.arange(lo, hi, step)
-    active = np.full(len(ticks), "", dtype=object)
-    for tick, tid in firings:
-        law = apn.transition(tid).law if tid in apn.transition_ids else None
-        active[ticks >= tick] = law or ""
+    ran = [apn.transition(t).law if t in apn.transition_ids else None for _, t in firings]
+    last = np.searchsorted([k for k, _ in firings], ticks, side="right") - 1     # the firing each tick runs under
+    active = np.array([ran[i] if i >= 0 else None for i in last], dtype=object)
+    episode = trace.to_episode()
     best, where = -1.0, None
-    for name in sorted(set(active) - {""}):
-        law = laws.get(name)
-        if law is None:
-            continue
+    for name in sorted({a for a in active if a is not None and a in laws}):
+        law = laws[name]
         at = ticks[active == name]
-        try:
-            X = np.column_stack([trace.value(v)[at] for v in apn.laws[name].inputs]).astype(np.float64)
-        except (KeyError, ValueError):
-            continue
+        X = value_matrix(apn, episode, apn.laws[name].inputs)[at]
         _, std = law.predict(X, return_std=True)
         prior = float(law.sigma_f_) * np.asarray(law.y_scale_, dtype=float).reshape(-1)
         rel = (np.asarray(std).reshape(len(at), -1) / prior).max(axis=1)
