@@ -715,7 +715,7 @@ def _add_run_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("task", help="a bundled task (pendulum, nunchaku), an installed one, package.module:NAME or path/to/file.py:NAME")
     p.add_argument("--out", "-o", required=True, help="run folder")
     p.add_argument("--demos", type=_count(1, 1000), default=None,
-                   help="demonstrations (default: the task's DEMOS, 40)")
+                   help="demonstrations (default: the task's DEMOS: pendulum 40, nunchaku 20)")
     p.add_argument("--eval-trials", type=_count(1, 1_000_000), default=200)
     p.add_argument("--ablation-trials", type=_count(0, 1_000_000), default=100)
     p.add_argument("--max-trials", type=_count(1, 100_000), default=30, help="practice trials per scenario at most")
