@@ -281,6 +281,23 @@ def test_an_examined_revision_is_judged_on_the_same_trials_replayed(tmp_path, af
         assert model.version == 1
 
 
+@pytest.mark.parametrize("operator, after, retried", [
+    ("refit_law", [True] * 9 + [False], True),               # new laws kept: the old verdicts are void
+    ("refit_law", [True] * 7 + [False] * 3, False),          # the refit reverted: the old laws, the old verdicts
+    ("add_transition", [True] * 9 + [False], False),         # the laws did not change
+])
+def test_repair_candidates_get_a_new_chance_after_new_laws_pass_their_exam(tmp_path, operator, after, retried):
+    model = _model(tmp_path)
+    _, rev = refit_law(model.apn, "swing_up", "swing_up_r1", "own data")
+    model.history.record(rev)
+    practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, revert_window=10, exam=True), name="c")
+    state = _exam_state([True] * 9 + [False], after, draws=list(range(10)))
+    state.tried = ["back:P2>P1"]
+    state.revisions = [{"version": 1, "operator": operator, "target": "swing_up", "after_trial": 9}]
+    practice._check_watch(state)
+    assert state.tried == ([] if retried else ["back:P2>P1"])
+
+
 def test_the_exam_replays_the_draws_of_the_plain_trials_before_the_revision(tmp_path):
     model = _model(tmp_path)
     cfg = PracticeConfig(learn=True, revert_window=3, exam=True, explore=0.5, explore_every=2)

@@ -8,7 +8,7 @@ makes practice fail constantly, does not stay.
 A repair is on trial until the next constant failure: if no trial since it succeeded and none
 reached a place the failed trials before it never reached, it did not help — the net goes back to
 the version before it (a ``revert`` revision) and the next candidate the diagnosis supports is
-tried; a candidate is never tried twice. Trials that ended for a reason outside the net (a fault,
+tried; a candidate is never tried twice under the same laws. Trials that ended for a reason outside the net (a fault,
 a diverged simulation; see :data:`~.diagnosis.EVIDENCE_OUTCOMES`) are recorded but are no evidence:
 they neither count as failures nor enter a diagnosis.
 
@@ -23,6 +23,8 @@ With ``learn`` (learning from practice, the paper's third form in full) the loop
   own grade is counted;
 * has the mentor take over failed trials, up to ``takeover_budget`` (:mod:`.takeover`): a
   demonstration from where the robot knew least, learned from at the next refit;
+* gives the repair candidates it tried a new chance once new laws have passed their exam: they
+  were judged with the old ones (:meth:`Practice._after_exam`);
 * watches every revision: if the robot's own success rate over the next ``revert_window`` plain
   trials is clearly worse than over the ``revert_window`` before it (one-sided Fisher test at
   ``revert_p``), the net goes back to the version before (a ``revert`` revision). With ``exam``
@@ -592,6 +594,7 @@ class Practice:
             state.last_refit_trial = max(state.last_refit_trial, state.trial - 1)
             if self.model.version == w["version"] and w["draws"]:
                 self._paired_verdict(state, w, after[:len(w["draws"])])
+            self._after_exam(state, w)
             return
         if len(after) < cfg.revert_window:
             return
@@ -610,6 +613,15 @@ class Practice:
                         f"trials after version {w['version']} (one-sided Fisher p = {p:.3f})",
                         {"before": table[0], "after": table[1], "p": round(p, 4), "reverted": w["version"]})
         self._record(state, rev)
+
+    def _after_exam(self, state: PracticeState, w: dict[str, Any]) -> None:
+        """A refit that passed its exam gives the repair candidates tried before it a new chance:
+        they were judged with the old laws (a way back after a push does not help while the swing-up
+        law cannot recover from where the push leaves the pendulum; after takeovers there it may)."""
+        refits = [r for r in state.revisions if r.get("version") is not None
+                  and w["before_version"] < r["version"] <= w["version"] and r["operator"] == "refit_law"]
+        if refits and self.model.version == w["version"] and state.tried:
+            state.tried = []
 
     def _paired_verdict(self, state: PracticeState, w: dict[str, Any], after: list[bool]) -> None:
         """Revert the examined revision if it lost ``exam_margin`` more of the replayed trials than it won
