@@ -130,6 +130,8 @@ def test_refit_follows_the_new_labels(work_unmirrored):
     info = SkillModel(model).manifest["training"]["judges"]["P2"]
     assert info["revised_by"] == "bob" and info["segments"] == 4 and info["success_labels"] == 2
     assert info["mirror_images"] == 0
+    # the note on how much the labels can teach follows them: 4 successes, now 2 and 2
+    assert not info["informative"] and info["uninformative"].startswith("only 2 failure label(s) among 4 segments")
 
 
 class Pump:

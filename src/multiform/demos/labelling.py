@@ -44,7 +44,7 @@ from ..errors import InvalidInput
 from ..learn.features import Segment
 from ..learn.judge import Judge
 from ..learn.labels import ROBOT, LabelRecord, LabelStore, is_mentor, now
-from ..learn.training import demo_source, judged_places, record_segments
+from ..learn.training import demo_source, judged_places, label_balance, record_segments
 from ..learn.views import is_mirror, stays, value_matrix
 from ..model import SkillModel
 from ..petri.net import APN
@@ -479,7 +479,7 @@ def refit_judges(model: SkillModel, places: Sequence[str], episodes: Mapping[str
         best = judge.cv_scores_.get(judge.best_kernel_, {})
         real = np.array([not is_mirror(k[0]) for k in judge.keys_], dtype=bool)
         info[place] = {"segments": int(real.sum()), "success_labels": int(judge.y_[real].sum()),
-                       "mirror_images": int((~real).sum()),
+                       "mirror_images": int((~real).sum()), **label_balance(judge.y_[real]),
                        "kernel": judge.best_kernel_, "cv_score": best.get("score") if isinstance(best, dict) else best,
                        "cv_scores": {k: (v.get("score") if isinstance(v, dict) else v)
                                      for k, v in judge.cv_scores_.items()},

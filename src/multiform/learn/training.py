@@ -236,6 +236,22 @@ def demo_segments(apn: APN, episodes: Sequence[Episode], records: Sequence[Label
 MIN_LABELS_PER_VERDICT = 3
 
 
+def label_balance(success: Sequence[bool] | np.ndarray) -> dict[str, Any]:
+    """Whether a judge's labels (of its own segments, mirror images aside) can teach it to tell
+    success from failure: at least :data:`MIN_LABELS_PER_VERDICT` of each verdict. ``uninformative``
+    is the note the job prints when not (None when they can: a revised judge's note is replaced)."""
+    own = np.asarray(success, dtype=bool)
+    fewest = int(min(own.sum(), (~own).sum()))
+    if fewest >= MIN_LABELS_PER_VERDICT:
+        return {"informative": True, "uninformative": None}
+    kind = "failure" if (~own).sum() <= own.sum() else "success"
+    return {"informative": False,
+            "uninformative": (f"only {fewest} {kind} label(s) among {len(own)} segments: the judge cannot tell success "
+                              f"from failure here and grades every stay as "
+                              f"{'successful' if kind == 'failure' else 'failed'}; the robot relies on the net's own "
+                              f"outcome for this place")}
+
+
 def fit_judge(apn: APN, episodes: Sequence[Episode], store: LabelStore, place: str, seed: int = 0,
               heldout: float = 0.25, mirror: bool = True) -> tuple[Judge, dict[str, Any]]:
     """Fit the judge of ``place`` on the store's effective mentor labels (and, if the skill declares a
@@ -250,15 +266,7 @@ def fit_judge(apn: APN, episodes: Sequence[Episode], store: LabelStore, place: s
                                "mirror_images": int(mirrored.sum())}
     if len(y) < 4:
         raise ValueError(f"judge of {place}: only {len(y)} labelled segments")
-    own = np.asarray(y[~mirrored], dtype=bool)
-    fewest = int(min(own.sum(), (~own).sum()))
-    summary["informative"] = fewest >= MIN_LABELS_PER_VERDICT
-    if not summary["informative"]:
-        kind = "failure" if (~own).sum() <= own.sum() else "success"
-        summary["uninformative"] = (f"only {fewest} {kind} label(s) among {len(own)} segments: the judge cannot "
-                                    f"tell success from failure here and grades every stay as "
-                                    f"{'successful' if kind == 'failure' else 'failed'}; the robot relies on "
-                                    f"the net's own outcome for this place")
+    summary.update(label_balance(y[~mirrored]))
     with warnings.catch_warnings():     # expected with few labels (folds with one class): not the user's business
         warnings.simplefilter("ignore", UserWarning)
         _fit_judge_rows(place, variables, segs, y, mirrored, episodes, heldout, seed, summary)
