@@ -10,7 +10,8 @@ the repair scenarios. Each final skill is evaluated on the same randomised trial
 Prints one row per (demos, seed, variant): success with its Wilson 95 % interval, unpushed and
 pushed, practice trials, practice seconds of robot time (the anchor: PILCO needed 17.5 s of
 interaction for a cart-pole swing-up), mentor-labelled trials; then the median over seeds per
-(demos, variant). Writes ``OUT/data_efficiency.json`` and ``OUT/data_efficiency.png``.
+(demos, variant); then, for the counts the task has a target for (:data:`TARGETS`), each seed's
+figures against it, met or not. Writes ``OUT/data_efficiency.json`` and ``OUT/data_efficiency.png``.
 
     .venv/bin/python benchmarks/bench_data_efficiency.py --out runs/data_efficiency \\
         [--demos 5 10 20 40] [--seeds 0 1 2] [--trials 200] [--workers 2] [--ray ADDRESS]
@@ -103,6 +104,49 @@ def run_on_ray(args: argparse.Namespace, out: Path) -> None:
         print(f"  done: {demos} demos, seed {seed}", flush=True)
 
 
+# What learning from few demonstrations must reach (demos -> rule): every job seed at least ``rate``
+# (pushed trials at least ``pushed``) within ``practice`` practice trials of which at most ``mentor``
+# took the mentor's time; or the median over the seeds at least ``rate``.
+TARGETS = {
+    "pendulum": {10: {"rule": "every seed", "rate": 0.95, "pushed": 0.90, "practice": 100, "mentor": 20},
+                 5: {"rule": "median", "rate": 0.90}},
+    "nunchaku": {10: {"rule": "every seed", "rate": 0.90}},
+}
+
+
+def check_targets(task: str, rows: list[dict]) -> list[str]:
+    """One line per (demos, variant) the task has a target for: each seed's figures, met or not."""
+    lines = []
+    for demos, t in sorted(TARGETS.get(task, {}).items()):
+        for variant in VARIANTS:
+            sel = sorted((r for r in rows if r["demos"] == demos and r["variant"] == variant), key=lambda r: r["seed"])
+            if not sel:
+                continue
+            if t["rule"] == "median":
+                med = statistics.median(r["rate"] for r in sel)
+                ok = med >= t["rate"]
+                lines.append(f"  {demos:3d} demos, {variant}: median over {len(sel)} seeds {100 * med:.1f} % "
+                             f"(target >= {100 * t['rate']:.0f} %): {'met' if ok else 'NOT met'}")
+                continue
+            parts, met = [], True
+            for r in sel:
+                checks = [r["rate"] >= t["rate"]]
+                text = f"seed {r['seed']} {100 * r['rate']:.1f} %"
+                if "pushed" in t and r["pushed"][1]:
+                    checks.append(r["pushed"][0] >= t["pushed"] * r["pushed"][1])
+                    text += f", pushed {r['pushed'][0]}/{r['pushed'][1]}"
+                if "practice" in t:
+                    checks.append(r["practice_trials"] <= t["practice"] and r["mentor_labelled_trials"] <= t["mentor"])
+                    text += f", {r['practice_trials']} practice / {r['mentor_labelled_trials']} with the mentor"
+                parts.append(text + ("" if all(checks) else " (short)"))
+                met = met and all(checks)
+            bar = f">= {100 * t['rate']:.0f} %" + (f", pushed >= {100 * t['pushed']:.0f} %" if "pushed" in t else "") + \
+                (f", <= {t['practice']} practice and <= {t['mentor']} mentor trials" if "practice" in t else "")
+            lines.append(f"  {demos:3d} demos, {variant}: every seed {bar}: {'; '.join(parts)}: "
+                         f"{'met' if met else 'NOT met'}")
+    return lines
+
+
 def plot(rows: list[dict], path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
@@ -171,6 +215,10 @@ def main() -> None:
                 rates = [100 * r["rate"] for r in sel]
                 print(f"  {demos:3d} demos, {variant:<24} {statistics.median(rates):5.1f} % "
                       f"(range {min(rates):.1f}-{max(rates):.1f} %, {len(sel)} seeds)")
+    lines = check_targets(args.task, rows)
+    if lines:
+        print("\nagainst the targets:")
+        print("\n".join(lines))
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "data_efficiency.json", rows)
     plot(rows, out / "data_efficiency.png")
