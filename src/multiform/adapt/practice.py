@@ -8,9 +8,9 @@ makes practice fail constantly, does not stay.
 A repair is on trial until the next constant failure: if no trial since it succeeded and none
 reached a place the failed trials before it never reached, it did not help — the net goes back to
 the version before it (a ``revert`` revision) and the next candidate the diagnosis supports is
-tried; a candidate is never tried twice under the same laws. Trials that ended for a reason outside the net (a fault,
-a diverged simulation; see :data:`~.diagnosis.EVIDENCE_OUTCOMES`) are recorded but are no evidence:
-they neither count as failures nor enter a diagnosis.
+tried; a candidate is never tried twice under the same laws. Trials that ended for a reason outside
+the net (a fault, a diverged simulation; see :data:`~.diagnosis.EVIDENCE_OUTCOMES`) are recorded
+but are no evidence: they neither count as failures nor enter a diagnosis.
 
 With ``learn`` (learning from practice, the paper's third form in full) the loop also
 * keeps the stays it grades successful with a margin as the laws' own training data
@@ -618,9 +618,9 @@ class Practice:
         """A refit that passed its exam gives the repair candidates tried before it a new chance:
         they were judged with the old laws (a way back after a push does not help while the swing-up
         law cannot recover from where the push leaves the pendulum; after takeovers there it may)."""
-        refits = [r for r in state.revisions if r.get("version") is not None
-                  and w["before_version"] < r["version"] <= w["version"] and r["operator"] == "refit_law"]
-        if refits and self.model.version == w["version"] and state.tried:
+        refitted = any(r["operator"] == "refit_law" and r.get("version") is not None
+                       and w["before_version"] < r["version"] <= w["version"] for r in state.revisions)
+        if refitted and self.model.version == w["version"]:
             state.tried = []
 
     def _paired_verdict(self, state: PracticeState, w: dict[str, Any], after: list[bool]) -> None:

@@ -6,14 +6,14 @@ Ross et al.'s DAgger, Kelly et al.'s HG-DAgger). The robot's laws fail where the
 demonstrations never went (a pendulum spinning after a push, the hand at the end of its stroke);
 its own graded successes cannot teach those states, since it rarely succeeds from them.
 
-When the mentor grades a practice trial that failed, it also demonstrates from the state of that
-trial where the robot knew least: the tick at which the law running then was least sure of its
+When a practice trial fails (up to the scenario's ``takeover_budget``), the mentor demonstrates
+from the state of that trial where the robot knew least: the tick at which the law running then was least sure of its
 command (its posterior standard deviation against its prior's, :func:`stuck_tick`). The task says
 how a demonstration starts from a state (a ``takeover`` callable: the trial's trace and the tick →
 an :class:`~multiform.demos.episode.Episode` recorded by the mentor, or None). The demonstration is
 the mentor's data, kept apart from the demonstrations it was taught with (``experience/takeovers``)
-and learned from at the next refit of the laws; it costs no more of the mentor's time than the
-grading, which it comes with.
+and learned from at the next refit of the laws. A trial the mentor both grades and takes over
+counts once against its time.
 """
 
 from __future__ import annotations
