@@ -16,9 +16,9 @@ from multiform.demos.pendulum_mentor import PendulumMentor
 from multiform.learn.gp import GPLaw
 from multiform.learn.judge import SegmentGrade, TrialGrade
 from multiform.learn.training import fit_law
-from multiform.learn.views import law_data
+from multiform.learn.views import law_data, place_episode
 from multiform.model import SkillModel
-from multiform.petri.revision import History, refit_law
+from multiform.petri.revision import History, add_transition, refit_law
 from multiform.petri.skillfile import load_skill
 
 from .synthetic import make_trace
@@ -191,6 +191,30 @@ def test_the_mentor_grades_a_trial_from_its_trace_alone():
     labels = mentor.grade_trial(Episode(obs=fell[:, None], actions=ep.actions, transitions=tags,
                                         observation_names=("theta",), command_names=("v_cmd",), dt=dt, seed=0))
     assert [lab.success for lab in labels] == [True, False]
+
+
+def test_the_mentor_labels_only_the_stays_the_judges_graded(tmp_path, monkeypatch):
+    """A way back and the way in firing within a few ticks leave stays of milliseconds that the
+    judges do not grade (:func:`~multiform.learn.judge.grade_episode`); the mentor's word on them
+    is not asked for, so no judge learns what a few milliseconds of a place look like."""
+    import multiform.demos.labelling as labelling
+    model = SkillModel.create(tmp_path / "model", "pendulum")
+    apn, _ = add_transition(model.apn, "t7", {"in": ["P2"], "out": ["P1"], "law": "swing_up",
+                                              "condition": {"model": "back", "unless": "t1"}}, "test")
+    trace = make_trace(apn, [(0, "t0"), (100, "t1"), (103, "t7"), (105, "t1"), (250, "t6")], _values(260), "success")
+    grade = TrialGrade(segments=[SegmentGrade("c_3", 0, 100, "P1", "P1", 0.9),
+                                 SegmentGrade("c_3", 105, 250, "P2", "P2", 0.9)], places={"P1": 0.9, "P2": 0.9}, score=0.9)
+    revised = []
+    monkeypatch.setattr(labelling, "refit_judges", lambda model, places, episodes, seed=0: revised.append(places) or {})
+
+    def mentor(placed, net):
+        return [SegmentLabel(s, e, p, True, "mentor") for s, e, p in placed.segments() if p in ("P1", "P2")]
+    assert len(mentor(place_episode(apn, trace.to_episode()), apn)) == 4           # it would label all four
+    practice = Practice(model, tmp_path / "practice", PracticeConfig(learn=True), name="c", mentor=mentor)
+    verdicts, account = practice._mentor_grades("c_3", trace, grade, apn)
+    assert sorted(verdicts) == [(0, 100), (105, 250)]
+    assert sorted((r.start, r.end) for r in model.labels) == [(0, 100), (105, 250)]
+    assert account["stays"] == account["agree"] == 2 and revised == [["P1", "P2"]]
 
 
 def test_exploration_is_seeded_smooth_and_of_the_asked_size():

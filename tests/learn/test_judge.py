@@ -141,6 +141,30 @@ def test_grade_episode_scores_places_and_the_trial(judges):
     assert grade_episode(short, judges, place_of).score == 0.0
 
 
+def test_a_stay_shorter_than_any_taught_is_passed_through(judges):
+    """A way back and the way in firing within a few ticks (P2 for 3 ms, P1 for 2 ms): those stays
+    are not graded, and each place keeps the grade of its last stay of a length it was taught."""
+    taught = {}
+    for place in ("P1", "P2"):
+        train, y = balanced_segments(place, 60, 3)
+        train = [dataclasses.replace(seg, source=f"demo_{i}") for i, seg in enumerate(train)]
+        taught[place] = Judge(place, VARS, kernels=("rbf",)).fit(train, y)
+        assert taught[place].shortest_taught_ == pytest.approx(min(seg.duration for seg in train))
+        assert taught[place].shortest_taught_ > 0.05
+    assert judges["P1"].shortest_taught_ == 0.0                          # taught by no demonstration
+    ep = episode(3)                                                      # swing-up 2.71 s, balance 4.07 s
+    n1, n = ep.labels[0].end, ep.num_samples
+    ep.transitions = ep.transitions.copy()
+    ep.transitions[n1 + 3:n1 + 5] = "t7"
+    place_of = {"t0": "P1", "t1": "P2", "t7": "P1"}
+    g = grade_episode(ep, taught, place_of)
+    assert [(s.place, s.start, s.end) for s in g.segments] == [("P1", 0, n1), ("P2", n1 + 5, n)]
+    whole = segment_from_episode(ep, 0, n1, VARS)
+    assert g.places["P1"] == pytest.approx(taught["P1"].grade(whole))
+    every = grade_episode(ep, judges, place_of)                          # no demonstrations: every stay
+    assert [(s.start, s.end) for s in every.segments] == [(0, n1), (n1, n1 + 3), (n1 + 3, n1 + 5), (n1 + 5, n)]
+
+
 def test_save_load_and_bad_judge_files(judges, tmp_path):
     j = judges["P2"]
     path = tmp_path / "judge_P2.npz"

@@ -19,8 +19,8 @@ With ``learn`` (learning from practice, the paper's third form in full) the loop
 * explores on every ``explore_every``-th trial (:mod:`.explore`), so its own data holds variations
   of its maneuvers and not only their repetition; the other trials measure the skill as it is;
 * has the mentor grade every ``mentor_every``-th trial, up to ``mentor_budget`` trials, from the
-  trial's trace alone; the labels revise the judges, and each label that contradicts the robot's
-  own grade is counted;
+  trial's trace alone (each stay the judges graded); the labels revise the judges, and each label
+  that contradicts the robot's own grade is counted;
 * has the mentor take over failed trials, up to ``takeover_budget`` (:mod:`.takeover`): a
   demonstration from where the robot knew least, learned from at the next refit;
 * gives the repair candidates it tried a new chance once new laws have passed their exam: they
@@ -418,16 +418,16 @@ class Practice:
 
     def _mentor_grades(self, source: str, trace: Trace, grade: Any, apn: APN
                        ) -> tuple[dict[tuple[int, int], bool], dict[str, Any]]:
-        """The mentor labels every judged stay of the trial; the labels go to the label store and
-        revise the judges; returns the verdicts by stay and an account (agreement with the robot)."""
+        """The mentor labels every stay of the trial the judges graded; the labels go to the label
+        store and revise the judges; returns the verdicts by stay and an account (agreement with the
+        robot)."""
         from ..demos.labelling import refit_judges
         ep = trace.to_episode()
         placed = place_episode(apn, ep)
-        labels = self.mentor(placed, apn)
-        judged = {g.place for g in grade.segments}
         robot = {(g.start, g.end): g.success for g in grade.segments}
-        verdicts = {(lab.start, lab.end): bool(lab.success) for lab in labels if lab.transition in judged}
-        records = records_from_episode(source, [lab for lab in labels if lab.transition in judged], lambda p: p)
+        labels = [lab for lab in self.mentor(placed, apn) if (lab.start, lab.end) in robot]
+        verdicts = {(lab.start, lab.end): bool(lab.success) for lab in labels}
+        records = records_from_episode(source, labels, lambda p: p)
         agree = sum(robot.get(key) == v for key, v in verdicts.items())
         account = {"stays": len(verdicts), "agree": int(agree), "mentor_success": int(sum(verdicts.values())),
                    "robot_success": int(sum(robot.get(key, False) for key in verdicts))}

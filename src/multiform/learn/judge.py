@@ -17,6 +17,9 @@ Whole-trial score (:func:`grade_episode`): each judged place's score is the scor
 segment in the trial (a failed swing-up followed by a successful repeat has passed "swung up"), and
 the trial's score is the **minimum** over the judged places — a trial is as good as its weakest
 sub-procedure — with a place the trial never reached scoring 0. ``combine="product"`` is offered too.
+A stay shorter than every demonstration segment its judge was taught (:attr:`Judge.shortest_taught_`)
+is not graded: it is the token passing through (a way back and the way in firing within a few
+ticks), not a sub-procedure, and a judge shown a few milliseconds of it scores what it never saw.
 """
 
 from __future__ import annotations
@@ -165,6 +168,15 @@ class Judge(BaseEstimator):
         """Verdicts: True where the score is at least 0.5."""
         return self.grade_many(segments) >= 0.5
 
+    @property
+    def shortest_taught_(self) -> float:
+        """The shortest segment (s) of the mentor's demonstrations among the judge's training rows
+        (0 if it has none): the briefest stay it knows a verdict for."""
+        self._check_fitted()
+        col = self.feature_names_.index("duration")
+        d = [row[col] for row, k in zip(self.X_, self.keys_) if base_source(k[0]).startswith("demo_")]
+        return float(min(d)) if d else 0.0
+
     def _check_fitted(self) -> None:
         if not hasattr(self, "pool_"):
             raise RuntimeError(f"judge {self.place!r} is not fitted")
@@ -310,13 +322,14 @@ def grade_episode(ep: EpisodeLike, judges: Mapping[str, Judge], place_of: Callab
     tags = np.asarray(getattr(ep, "transitions"))
     mentor = {r.key: r.success for r in labels if r.source == source}
     out = TrialGrade(combine=combine)
+    shortest = {p: j.shortest_taught_ for p, j in judges.items()}
     if len(tags):
         cut = np.flatnonzero(tags[1:] != tags[:-1]) + 1
         bounds = zip(np.concatenate([[0], cut]), np.concatenate([cut, [len(tags)]]))
         for s, e in bounds:
             t = str(tags[s])
             place = get(t) if t else None
-            if place is None or place not in judges:
+            if place is None or place not in judges or (e - s) * ep.dt < shortest[place]:
                 continue
             j = judges[place]
             seg = segment_from_episode(ep, int(s), int(e), j.variables, source=source, transition=t)
