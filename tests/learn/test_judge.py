@@ -163,6 +163,12 @@ def test_a_stay_shorter_than_any_taught_is_passed_through(judges):
     assert g.places["P1"] == pytest.approx(taught["P1"].grade(whole))
     every = grade_episode(ep, judges, place_of)                          # no demonstrations: every stay
     assert [(s.start, s.end) for s in every.segments] == [(0, n1), (n1, n1 + 3), (n1 + 3, n1 + 5), (n1 + 5, n)]
+    # a place whose only stay is shorter than any taught is graded all the same: the robot was quicker
+    quick = episode(3)
+    quick.transitions = np.array(["t0"] * n1 + ["t1"] * 50 + [""] * (n - n1 - 50))
+    g = grade_episode(quick, taught, place_of)
+    assert [(s.place, s.start, s.end) for s in g.segments] == [("P1", 0, n1), ("P2", n1, n1 + 50)]
+    assert g.places["P2"] > 0
 
 
 def test_save_load_and_bad_judge_files(judges, tmp_path):

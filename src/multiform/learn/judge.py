@@ -18,8 +18,10 @@ segment in the trial (a failed swing-up followed by a successful repeat has pass
 the trial's score is the **minimum** over the judged places — a trial is as good as its weakest
 sub-procedure — with a place the trial never reached scoring 0. ``combine="product"`` is offered too.
 A stay shorter than every demonstration segment its judge was taught (:attr:`Judge.shortest_taught_`)
-is not graded: it is the token passing through (a way back and the way in firing within a few
-ticks), not a sub-procedure, and a judge shown a few milliseconds of it scores what it never saw.
+is not graded when its place has a longer stay in the trial: it is the token passing through (a way
+back and the way in firing within a few ticks), not a sub-procedure, and a judge shown a few
+milliseconds of it scores what it never saw. A place whose every stay is that short is graded as it
+is (the robot may simply be quicker than the mentor there).
 """
 
 from __future__ import annotations
@@ -322,19 +324,22 @@ def grade_episode(ep: EpisodeLike, judges: Mapping[str, Judge], place_of: Callab
     tags = np.asarray(getattr(ep, "transitions"))
     mentor = {r.key: r.success for r in labels if r.source == source}
     out = TrialGrade(combine=combine)
-    shortest = {p: j.shortest_taught_ for p, j in judges.items()}
+    stays = []
     if len(tags):
         cut = np.flatnonzero(tags[1:] != tags[:-1]) + 1
-        bounds = zip(np.concatenate([[0], cut]), np.concatenate([cut, [len(tags)]]))
-        for s, e in bounds:
+        for s, e in zip(np.concatenate([[0], cut]), np.concatenate([cut, [len(tags)]])):
             t = str(tags[s])
             place = get(t) if t else None
-            if place is None or place not in judges or (e - s) * ep.dt < shortest[place]:
-                continue
-            j = judges[place]
-            seg = segment_from_episode(ep, int(s), int(e), j.variables, source=source, transition=t)
-            out.segments.append(SegmentGrade(source, int(s), int(e), t, place, j.grade(seg),
-                                             mentor.get((source, int(s), int(e)))))
+            if place is not None and place in judges:
+                stays.append((int(s), int(e), t, place))
+    shortest = {p: j.shortest_taught_ for p, j in judges.items()}
+    taught = {p for s, e, _, p in stays if (e - s) * ep.dt >= shortest[p]}
+    for s, e, t, place in stays:
+        if place in taught and (e - s) * ep.dt < shortest[place]:
+            continue                    # passed through; the place has a stay of a length its judge knows
+        j = judges[place]
+        seg = segment_from_episode(ep, s, e, j.variables, source=source, transition=t)
+        out.segments.append(SegmentGrade(source, s, e, t, place, j.grade(seg), mentor.get((source, s, e))))
     for g in out.segments:
         out.places[g.place] = g.score
     scores = [out.places.get(p, 0.0) for p in judges]
