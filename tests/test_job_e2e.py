@@ -22,7 +22,7 @@ from multiform.report.browser import chromium, render
 pytestmark = pytest.mark.slow
 
 SMALL = JobConfig(demos=14, eval_trials=12, ablation_trials=6, practice_max_trials=10, workers=2, seed=3,
-                  videos=True, inverse_model=False)
+                  videos=True, inverse_model=False, learn=False)     # learning: test_learning_from_practice_* below
 
 
 @pytest.fixture(scope="module")

@@ -64,3 +64,21 @@ def test_the_repair_only_skill_is_evaluated_beside_the_learned_one(car, tmp_path
     assert variant.net_version == repaired and variant.model_dir == str(model.path)
     assert "repairs the net only" in variant.name
     assert ev.submitted == [(variant, 7)]
+
+
+@pytest.mark.parametrize("task, demos, learn", [("pendulum", 10, True), ("nunchaku", 20, False)])
+def test_the_main_job_takes_its_size_and_learning_from_the_task(tmp_path, task, demos, learn):
+    """`multiform demo pendulum` learns from practice from 10 demonstrations (the fewest from which
+    every job seed measured reaches the target); the nunchaku's main job repairs only; a config
+    that says otherwise wins."""
+    job = Job(task, tmp_path / "run", JobConfig(), log=lambda *a: None, progress=False)
+    assert (job.cfg.demos, job.cfg.learn) == (demos, learn)
+    told = Job(task, tmp_path / "run", JobConfig(demos=3, learn=not learn), log=lambda *a: None, progress=False)
+    assert (told.cfg.demos, told.cfg.learn) == (3, not learn)
+
+
+@pytest.mark.parametrize("flags, learn", [([], None), (["--learn-from-practice"], True),
+                                          (["--no-learn-from-practice"], False)])
+def test_demo_learns_from_practice_as_the_task_says_unless_told(flags, learn):
+    from multiform.cli import build_parser
+    assert build_parser().parse_args(["demo", "pendulum", "-o", "run", *flags]).learn_from_practice is learn

@@ -54,8 +54,9 @@ class JobConfig:
     ablation_trials: int = 100
     practice_max_trials: int = 30    # per repair scenario
     practice_budget: int = 100       # trials of all scenarios together; learning from practice gets the rest
-    learn: bool = False              # also learn from practice (own experience, the mentor's grades of some
-                                     # trials) in the task's learning scenario; False: practice repairs the net only
+    learn: bool | None = None        # also learn from practice (own experience, the mentor's grades of some
+                                     # trials) in the task's learning scenario; False: practice repairs the net
+                                     # only; None: the task's LEARN
     workers: int = 2
     seed: int = 0
     push_fraction: float = 0.5
@@ -75,6 +76,8 @@ class Job:
         self.cfg = config or JobConfig()
         if self.cfg.demos is None:
             self.cfg = replace(self.cfg, demos=int(getattr(self.task, "DEMOS", 40)))
+        if self.cfg.learn is None:
+            self.cfg = replace(self.cfg, learn=bool(getattr(self.task, "LEARN", False)))
         self.log = log
         self.progress = progress
         self.view = view            # None, or where the picked trials stream (see multiform.view.stream.viewer_url)

@@ -52,6 +52,7 @@ class Task:
     ENV_ID: str = ""                            # the Gymnasium env id
     DEMO_ENV_KWARGS: dict[str, Any] = {}        # gymnasium.make arguments while the mentor demonstrates
     DEMOS: int = 40                             # the main job's demonstrations
+    LEARN: bool = False                         # the main job learns from practice (a scenario with "learn")
     DESCRIPTION: str = ""
     TARGET_SUCCESS_RATE: float = 0.9
     PLOT_VARIABLES: list[tuple[str, str]] = []  # (variable, axis label) of the report's motion plot
