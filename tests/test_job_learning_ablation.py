@@ -28,7 +28,7 @@ def car(tmp_path_factory, mountain_car_class):
 
 
 class Queue:
-    """An evaluator that only notes what was submitted."""
+    """An evaluator that only notes what was submitted (and collects nothing)."""
 
     def __init__(self):
         self.submitted = []
@@ -36,6 +36,10 @@ class Queue:
     def submit(self, variant, specs, done=None):
         self.submitted.append((variant, len(specs)))
         return []
+
+    def collect(self, variant, futures):
+        return {"name": variant.name, "notes": variant.notes, "successes": 0, "trials": 0, "rate": 0.0,
+                "low": 0.0, "high": 0.0}
 
 
 def _revise(model, scenario: str) -> int:
@@ -53,6 +57,8 @@ def test_the_repair_only_skill_is_evaluated_beside_the_learned_one(car, tmp_path
     repaired = _revise(model, "practice")
     ev = Queue()
     assert job._repair_only(model, ev) == []          # learning has revised nothing yet: the same skill
+    main, _ = job.evaluate(model, Queue(), queued=[])
+    assert ("learning from practice revised nothing" in main["notes"]) is learn     # and the table says so
     _revise(model, "keep")
     _revise(model, "keep")
     rows = job._repair_only(model, ev)

@@ -195,8 +195,7 @@ class Job:
         before learning; the same model directory at that net version), on the ablation trials."""
         if not self.cfg.learn or not self.cfg.ablation_trials:
             return []
-        learning = {sc["name"] for sc in self.task.scenarios() if sc.get("learn")}
-        first = next((r.version for r in model.history.revisions() if r.evidence.get("scenario") in learning), None)
+        first = self._first_learned(model)
         if first is None:
             return []
         v = first - 1
@@ -207,14 +206,21 @@ class Job:
         bar = self._bar(len(sub), "ablation: practice repairs only", position=1)
         return [(variant, ev.submit(variant, sub, lambda: bar.update(1)), bar)]
 
+    def _first_learned(self, model: SkillModel) -> int | None:
+        """The first net version a learning scenario recorded (None: learning revised nothing)."""
+        learning = {sc["name"] for sc in self.task.scenarios() if sc.get("learn")}
+        return next((r.version for r in model.history.revisions() if r.evidence.get("scenario") in learning), None)
+
     def evaluate(self, model: SkillModel, ev: Evaluator, queued: list[tuple[Variant, list, tqdm]] | None = None
                  ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
         """The final skill on the evaluation trials, then the ablations (queued now unless
         :meth:`baselines` queued them earlier)."""
         specs = self._specs()
+        notes = "the robot's revised net" if model.version else "the mentor's net: practice revised nothing"
+        if self.cfg.learn and self._first_learned(model) is None:
+            notes += "; learning from practice revised nothing, so it is also the skill practice that repairs only leaves"
         final = Variant("multiform (definition + demonstration + evaluation, with repair)", str(model.path),
-                        notes="the robot's revised net" if model.version else "the mentor's net: practice revised nothing",
-                        use_inverse_model=self.cfg.inverse_model)
+                        notes=notes, use_inverse_model=self.cfg.inverse_model)
         with self._bar(len(specs), "evaluating") as bar:
             main = ev.collect(final, ev.submit(final, specs, lambda: bar.update(1)))
         self.log(f"  final success rate {100 * main['rate']:.1f} % ({main['successes']}/{main['trials']}, "
