@@ -57,7 +57,7 @@ from ..io import read_json, write_json
 from ..lock import exclusive
 from ..learn.labels import is_mentor, records_from_episode
 from ..learn.training import LawSettings, fit_law
-from ..learn.views import place_episode
+from ..learn.views import is_demonstration, place_episode
 from ..model import ModelLearners, SkillModel
 from ..petri.net import APN
 from ..petri.revision import Revision, refit_law, revert
@@ -456,7 +456,7 @@ class Practice:
                 "outcome": ep.outcome}
 
     def _mentor_sources(self) -> list[str]:
-        return sorted({r.source for r in self.model.labels if not r.source.startswith("demo_")
+        return sorted({r.source for r in self.model.labels if not is_demonstration(r.source)
                        and is_mentor(r.labeller)})
 
     def _refit(self, state: PracticeState) -> None:

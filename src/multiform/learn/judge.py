@@ -40,7 +40,7 @@ from .features import STATS, EpisodeLike, Segment, as_str_list, check_names, fea
     segment_from_episode
 from .kernel_pool import KernelPoolClassifier
 from .labels import LabelRecord
-from .views import base_source, is_mirror
+from .views import base_source, is_demonstration, is_mirror
 
 KIND = "judge"
 VERSION = 1
@@ -176,7 +176,7 @@ class Judge(BaseEstimator):
         (0 if it has none): the briefest stay it knows a verdict for."""
         self._check_fitted()
         col = self.feature_names_.index("duration")
-        d = [row[col] for row, k in zip(self.X_, self.keys_) if base_source(k[0]).startswith("demo_")]
+        d = [row[col] for row, k in zip(self.X_, self.keys_) if is_demonstration(k[0])]
         return float(min(d)) if d else 0.0
 
     def _check_fitted(self) -> None:
@@ -330,7 +330,7 @@ def grade_episode(ep: EpisodeLike, judges: Mapping[str, Judge], place_of: Callab
         for s, e in zip(np.concatenate([[0], cut]), np.concatenate([cut, [len(tags)]])):
             t = str(tags[s])
             place = get(t) if t else None
-            if place is not None and place in judges:
+            if place in judges:
                 stays.append((int(s), int(e), t, place))
     shortest = {p: j.shortest_taught_ for p, j in judges.items()}
     taught = {p for s, e, _, p in stays if (e - s) * ep.dt >= shortest[p]}

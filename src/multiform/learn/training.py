@@ -28,8 +28,8 @@ from .judge import Judge
 from .labels import LabelRecord, LabelStore, records_from_episode
 from .region import PlaceRegions
 from .condition import LearnedCondition, switch_windows, window_hits
-from .views import (MIRROR_SUFFIX, LawData, base_source, is_mirror, law_data, mirror_episode, place_episode, place_samples,
-                    switch_data, value_matrix)
+from .views import (MIRROR_SUFFIX, LawData, base_source, is_demonstration, is_mirror, law_data, mirror_episode,
+                    place_episode, place_samples, switch_data, value_matrix)
 
 Progress = Callable[[str], None]
 
@@ -224,7 +224,7 @@ def demo_segments(apn: APN, episodes: Sequence[Episode], records: Sequence[Label
     cache: dict[str, np.ndarray] = {}
     segs, y = [], []
     for r in records:
-        if not r.source.startswith("demo_"):
+        if not is_demonstration(r.source):
             continue
         cut = record_segments(apn, episodes[int(r.source.split("_")[1])], r, variables, cache, mirror)
         segs += cut
@@ -259,7 +259,7 @@ def fit_judge(apn: APN, episodes: Sequence[Episode], store: LabelStore, place: s
     demonstration, tested on the held-out demonstrations' own segments (a mirror image follows its
     demonstration into the same side of the split)."""
     variables = judged_places(apn)[place]
-    records = [r for r in store.effective(place=place) if r.source.startswith("demo_")]
+    records = [r for r in store.effective(place=place) if is_demonstration(r.source)]
     segs, y = demo_segments(apn, episodes, records, variables, mirror=mirror)
     mirrored = np.array([is_mirror(s.source) for s in segs], dtype=bool)
     summary: dict[str, Any] = {"segments": int((~mirrored).sum()), "success_labels": int(y[~mirrored].sum()),

@@ -90,6 +90,12 @@ def base_source(source: str) -> str:
     return source[: -len(MIRROR_SUFFIX)] if is_mirror(source) else source
 
 
+def is_demonstration(source: str) -> bool:
+    """Whether a segment or label source names one of the mentor's demonstrations (``demo_3``, or
+    its mirror image ``demo_3~mirror``), not a practice trial."""
+    return base_source(source).startswith("demo_")
+
+
 def success_mask(ep: Episode) -> np.ndarray:
     """Per sample: True inside a segment the mentor labelled success."""
     mask = np.zeros(ep.num_samples, dtype=bool)
