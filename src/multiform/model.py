@@ -44,7 +44,7 @@ from .io import read_json, write_json
 from .lock import exclusive
 from .learn.condition import load_condition
 from .learn.gp import GPLaw
-from .learn.judge import Judge, TrialGrade, grade_episode
+from .learn.judge import Judge, TrialGrade, credit_handovers, grade_episode
 from .learn.labels import LabelStore
 from .learn.region import PlaceRegions, share_regions
 from .learn.views import place_episode, switch_data
@@ -369,8 +369,16 @@ class SkillModel:
         judges = self.judges() if judges is None else judges
         if trace.outcome == "diverged" or not judges:
             return TrialGrade(score=0.0)
-        return grade_episode(place_episode(apn, trace.to_episode()), judges, lambda p: p, source=source,
-                             labels=self.labels.effective(sources=[source]))
+        grade = grade_episode(place_episode(apn, trace.to_episode()), judges, lambda p: p, source=source,
+                              labels=self.labels.effective(sources=[source]))
+        tags = trace.tags()
+        return credit_handovers(grade, lambda g: str(tags[g.start]) in self._ways_forward, list(judges))
+
+    @cached_property
+    def _ways_forward(self) -> frozenset[str]:
+        """The transitions of the skill as written that do not lead to failure (version 0 never changes)."""
+        written = self.history.version(0)
+        return frozenset(t.id for t in written.transitions if not written.leads_to_failure(t.id))
 
 
 @contextlib.contextmanager

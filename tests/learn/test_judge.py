@@ -9,7 +9,7 @@ import pytest
 from multiform.errors import InvalidInput
 from multiform.io import load_npz, save_npz
 from multiform.learn.features import feature_names, segment_from_episode, trajectory_features
-from multiform.learn.judge import KIND, VERSION, Judge, grade_episode
+from multiform.learn.judge import KIND, VERSION, Judge, SegmentGrade, TrialGrade, credit_handovers, grade_episode
 from multiform.learn.kernel_pool import KernelPoolClassifier, platt_fit, platt_score
 from multiform.learn.labels import LabelRecord
 
@@ -169,6 +169,34 @@ def test_a_stay_shorter_than_any_taught_is_passed_through(judges):
     g = grade_episode(quick, taught, place_of)
     assert [(s.place, s.start, s.end) for s in g.segments] == [("P1", 0, n1), ("P2", n1, n1 + 50)]
     assert g.places["P2"] > 0
+
+
+def test_a_stay_that_handed_over_to_a_success_passes_with_it():
+    """A swing-up its judge fails, followed through the way in by a catch its judge passes, passes:
+    the trial succeeds. Not through a way back (a balance lost, then a good swing-up), and not when
+    the next stay failed too; the stays' own grades stay as they were."""
+    def trial(*stays):
+        segs = [SegmentGrade("t", 100 * i, 100 * i + 100, tag, place, score) for i, (tag, place, score) in enumerate(stays)]
+        places = {}
+        for g in segs:
+            places[g.place] = g.score
+        return TrialGrade(segs, places, min(places.values()))
+
+    forward = {"t0", "t1", "t2", "t3"}
+    way_in = credit_handovers(trial(("t0", "P1", 0.3), ("t1", "P2", 0.9)), lambda g: g.transition in forward, ["P1", "P2"])
+    assert way_in.places == {"P1": 0.9, "P2": 0.9} and way_in.success
+    assert [g.score for g in way_in.segments] == [0.3, 0.9]
+    # P2's last stay (a balance lost, the way back) failed; the swing-up after it does not lift it
+    back = credit_handovers(trial(("t0", "P1", 0.9), ("t1", "P2", 0.2), ("t7", "P1", 0.9)),
+                            lambda g: g.transition in forward, ["P1", "P2"])
+    assert back.places == {"P1": 0.9, "P2": 0.2} and not back.success
+    # only the last stay of a place counts, and only a successor its judge passes credits it
+    failed_next = credit_handovers(trial(("t0", "P1", 0.3), ("t1", "P2", 0.4)), lambda g: g.transition in forward, ["P1", "P2"])
+    assert failed_next.places == {"P1": 0.3, "P2": 0.4} and not failed_next.success
+    product = TrialGrade(way_in.segments, {"P1": 0.3, "P2": 0.9}, 0.27, "product")
+    assert credit_handovers(product, lambda g: True, ["P1", "P2"]).score == pytest.approx(0.81)
+    # a judged place the trial never reached scores 0, credited or not
+    assert credit_handovers(trial(("t0", "P1", 0.3), ("t1", "P2", 0.9)), lambda g: True, ["P1", "P2", "P3"]).score == 0.0
 
 
 def test_save_load_and_bad_judge_files(judges, tmp_path):

@@ -147,7 +147,7 @@ def _exit(apn: APN, trial: int, tr: Trace, region_scores: RegionScorer, names: S
     (a disturbance throwing the state out), or None (the failure had another cause, e.g. a timeout)."""
     last = tr.firings[-1]
     if tr.outcome != "failure" or last.transition not in apn.transition_ids or \
-            not any(apn.place(p).final == "failure" for p in apn.transition(last.transition).outputs):
+            not apn.leads_to_failure(last.transition):
         return None
     src = list(apn.transition(last.transition).inputs)
     if not src:

@@ -69,7 +69,7 @@ def replay_limits(apn: APN, mentor: MentorEvidence, slower: float = SLACK) -> li
 
 def _give_ups(apn: APN, place: str) -> list:
     return [t for t in apn.transitions if place in t.inputs and t.condition.guard is not None
-            and any(apn.place(p).final == "failure" for p in t.outputs)]
+            and apn.leads_to_failure(t.id)]
 
 
 def _one_pass(apn: APN, mentor: MentorEvidence, slower: float

@@ -343,7 +343,7 @@ def own_stay_floors(apn: APN, traces: Sequence[Any], regions: PlaceRegions) -> d
     angles), and a state the robot itself went on from has not left its place: an "outside P1"
     fitted to the mentor's floor alone fired in the middle of ordinary swing-ups (main job,
     seed 0, 56.5 %)."""
-    forward = {t.id for t in apn.transitions if not any(apn.place(q).final == "failure" for q in t.outputs)}
+    forward = {t.id for t in apn.transitions if not apn.leads_to_failure(t.id)}
     floors = {p: 0.0 for p in regions.places_}
     for tr in traces:
         V = np.column_stack([tr.value(n) for n in regions.input_names]).astype(np.float64)

@@ -237,6 +237,10 @@ class APN:
         """Final place id -> "success" or "failure"."""
         return {p.id: p.final for p in self.places if p.final}
 
+    def leads_to_failure(self, tid: str) -> bool:
+        """Whether transition ``tid`` puts a token into a failure place (a give-up rule)."""
+        return any(self.place(p).final == "failure" for p in self.transition(tid).outputs)
+
     # -- the incidence structure --------------------------------------------------------------
     @cached_property
     def pre(self) -> np.ndarray:
