@@ -715,7 +715,7 @@ def _add_run_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("task", help="a bundled task (pendulum, nunchaku), an installed one, package.module:NAME or path/to/file.py:NAME")
     p.add_argument("--out", "-o", required=True, help="run folder")
     p.add_argument("--demos", type=_count(1, 1000), default=None,
-                   help="demonstrations (default: the task's DEMOS: pendulum 10, nunchaku 20)")
+                   help="demonstrations (default: the task's DEMOS: pendulum 10, nunchaku 10)")
     p.add_argument("--eval-trials", type=_count(1, 1_000_000), default=200)
     p.add_argument("--ablation-trials", type=_count(0, 1_000_000), default=100)
     p.add_argument("--max-trials", type=_count(1, 100_000), default=30, help="practice trials per scenario at most")
@@ -725,7 +725,7 @@ def _add_run_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--learn-from-practice", action=argparse.BooleanOptionalAction, default=None,
                    help="after the repair scenarios, keep practising as evaluated and learn from it: refit the laws "
                         "from the robot's own graded successes and the mentor's takeovers, revise the judges with "
-                        "the mentor's grades of some trials (default: the task's LEARN: pendulum on, nunchaku off)")
+                        "the mentor's grades of some trials (default: the task's LEARN: on for both bundled tasks)")
     p.add_argument("--practice-budget", type=_count(0, 100_000), default=100,
                    help="practice trials of all scenarios together at most")
     p.add_argument("--reference-controller", action="store_true",

@@ -13,6 +13,7 @@ from multiform.adapt.explore import ExploringLaw
 from multiform.adapt.practice import Practice, PracticeConfig, PracticeState
 from multiform.demos.episode import Episode, SegmentLabel
 from multiform.demos.pendulum_mentor import PendulumMentor
+from multiform.errors import InvalidInput
 from multiform.learn.gp import GPLaw
 from multiform.learn.judge import SegmentGrade, TrialGrade
 from multiform.learn.training import fit_law
@@ -123,6 +124,24 @@ def test_only_a_skill_that_clearly_falls_short_of_its_target_is_refitted(tmp_pat
     if not short:
         practice._refit(state)
         assert model.version == 0 and state.last_refit_trial == len(trials) - 1
+
+
+def test_a_shortfall_needs_enough_plain_trials_of_the_net_as_it_is_now(tmp_path):
+    """One failure in five plain trials is clearly short of 98 %, read off five trials; with
+    ``shortfall_after`` 20 it is no evidence yet, and two failures in twenty are."""
+    model = _model(tmp_path)
+
+    def short(outcomes, after):
+        practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, target_rate=0.98,
+                                                                  shortfall_after=after), name="c")
+        trials = [{"trial": i, "success": ok, "net_version": 0} for i, ok in enumerate(outcomes)]
+        return practice._falls_short(PracticeState(trial=len(trials), trials=trials))
+
+    few, many = [True] * 4 + [False], [True] * 9 + [False] + [True] * 9 + [False]
+    assert short(few, 0) and not short(few, 20)
+    assert short(many, 20)
+    with pytest.raises(InvalidInput, match="shortfall_after"):
+        PracticeConfig(shortfall_after=-1)
 
 
 def _model(tmp_path) -> SkillModel:

@@ -118,7 +118,7 @@ def test_learned_flip_closed_loop_on_estimates(learned):
 def test_small_nunchaku_job_end_to_end(tmp_path):
     from multiform.job import Job, JobConfig
     out = tmp_path / "run"
-    cfg = JobConfig(demos=20, eval_trials=12, ablation_trials=6, practice_max_trials=6, workers=2)
+    cfg = JobConfig(demos=20, eval_trials=12, ablation_trials=6, practice_max_trials=6, practice_budget=12, workers=2)
     m = Job("nunchaku", out, cfg, log=lambda s: None, progress=False).run()
     disk = json.loads((out / "metrics.json").read_text())
     assert disk["task"] == "nunchaku" and disk["success_rate"]["trials"] == 12

@@ -28,9 +28,11 @@ BASELINE_WAIT = 6.0                # s: the demo-only harness stops a trial hold
                                    # the mentor's flip), so the single law has time to finish a flip
 
 TASK = "nunchaku"
-DEMOS = 20                         # the main job's demonstrations: the fewest with which every job seed flips
-                                   # >= 90 % (10: 88.0 / 100 / 97.0 % for seeds 0 / 1 / 2; 20: 97.0 / 96.5 /
-                                   # 94.5 %; 40: 91.0 / 96.0 / 96.0 %; docs/measurements.md)
+DEMOS = 10                         # the main job's demonstrations: the fewest with which every job seed flips
+                                   # >= 90 %, learning from practice (10: 95.0 / 100.0 / 97.0 % for seeds 0 / 1 / 2;
+                                   # from 5, job seed 1's demonstrations reach the regrasp three times, too few
+                                   # to teach its judge; seeds 0 and 2 flip 99.0 and 91.0 %; docs/measurements.md)
+LEARN = True                       # the main job learns from practice (scenario b_keep)
 DESCRIPTION = ("A hand on a fast 6-DoF base (MuJoCo) learns to flip a nunchaku — swing-up, release, the chain "
                "rolling over the back of the palm, regrasp of the other rod with a magnet palm — from a scripted "
                "mentor's demonstrations and labels, sensing the free rod only through the wrist load.")
@@ -113,7 +115,13 @@ def scenarios() -> list[dict[str, Any]]:
     in a row or 8 of the last 10 trials: a flip that works most of the time fails now and then
     (a weak flick, a late catch), and three such trials in a row are not a flaw in the definition —
     a repair made on them replaced t4's grip condition with a switch condition that fired before the
-    catch (observed with 16 demonstrations)."""
+    catch (observed with 16 demonstrations).
+
+    Learning from practice (``b_keep``) aims at 20 plain flips in a row (target 0.98) and refits
+    only on a shortfall read off 20 plain trials of the net as it is: a flip that fails one time in
+    ten makes 19 of 20 now and then, so at 0.95 practice stopped there without learning (10 demos,
+    job seed 0: 88.0 %); and one failure in the first five trials set off refits that cost a skill
+    that flipped 97 % nine points (job seed 2)."""
     return [
         {"name": "a_practice", "title": "(a) practice from the mentor's definition on randomised nunchakus",
          "options": trial_options,
@@ -122,8 +130,8 @@ def scenarios() -> list[dict[str, Any]]:
          "options": trial_options, "mentor": mentor_grader, "learn": True, "seed": 1,
          "config": {"failures_in_a_row": 6, "window": 10, "failure_rate": 0.8, "success_streak": 10**6,
                     "learn": True, "explore": 0.3, "explore_every": 2, "refit_every": 10,
-                    "mentor_every": MENTOR_EVERY, "mentor_budget": MENTOR_BUDGET, "target_rate": 0.95,
-                    "target_window": 20, "revert_window": 10, "exam": True}},
+                    "mentor_every": MENTOR_EVERY, "mentor_budget": MENTOR_BUDGET, "target_rate": 0.98,
+                    "target_window": 20, "shortfall_after": 20, "revert_window": 10, "exam": True}},
     ]
 
 
