@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from multiform.demos.record import record_many
+from multiform.errors import InvalidInput
 from multiform.learn.labels import LabelStore
 from multiform.learn.training import (LawSettings, fit_judge, fit_law, fit_regions, mentor_records,
                                       own_stay_floors, region_floor)
@@ -114,6 +115,14 @@ def test_mirror_image_of_a_demo(demos):
     assert (m.transitions == ep.transitions).all() and m.labels == ep.labels
     with pytest.raises(ValueError, match="no mirror"):
         mirror_episode(replace(apn, mirror={}), ep)
+
+
+def test_a_judge_from_too_few_demonstrations_is_refused_with_the_place_named(demos):
+    apn, eps = demos
+    store = LabelStore()
+    store.add_many(mentor_records(apn, eps[:1]))
+    with pytest.raises(InvalidInput, match=r"places\.P1\.judge.*record more demonstrations"):
+        fit_judge(apn, eps[:1], store, "P1", mirror=False)
 
 
 def test_judges_learn_from_mirror_images_but_are_tested_on_real_segments(demos):

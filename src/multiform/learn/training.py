@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from ..demos.episode import Episode
+from ..errors import InvalidInput
 from ..petri.net import APN
 from .features import Segment
 from .gp import GPLaw
@@ -265,7 +266,9 @@ def fit_judge(apn: APN, episodes: Sequence[Episode], store: LabelStore, place: s
     summary: dict[str, Any] = {"segments": int((~mirrored).sum()), "success_labels": int(y[~mirrored].sum()),
                                "mirror_images": int(mirrored.sum())}
     if len(y) < 4:
-        raise ValueError(f"judge of {place}: only {len(y)} labelled segments")
+        raise InvalidInput(f"only {summary['segments']} labelled segment(s) of the mentor's demonstrations reach this "
+                           f"place ({len(y)} with mirror images); its judge needs at least 4: record more demonstrations",
+                           element=f"places.{place}.judge")
     summary.update(label_balance(y[~mirrored]))
     with warnings.catch_warnings():     # expected with few labels (folds with one class): not the user's business
         warnings.simplefilter("ignore", UserWarning)
