@@ -65,6 +65,19 @@ def test_the_revision_line_stands_before_the_first_trial_that_ran_the_new_versio
     plt.close(fig)
 
 
+def test_revisions_made_together_share_one_label():
+    """A round of refits (one revision per law, the same trials before and after) is one line with
+    one label that counts them, not labels printed over each other."""
+    laws = ["pump", "swing", "release"]
+    revs = [{"version": 1 + i, "operator": "refit_law", "target": law, "after_trial": 2} for i, law in enumerate(laws)]
+    trials = [{**t, "net_version": 0 if t["trial"] < 3 else 3} for t in TRIALS]
+    fig = practice_figure(trials, revs + [{"version": 4, "operator": "revert", "target": "version 0", "after_trial": 5}])
+    labels = [a.get_text() for a in fig.findobj(lambda a: a.get_gid() == "revision label")]
+    assert labels == ["v1–v3: law refitted ×3", "v4: revision reverted of version 0"]
+    assert all(fig.findobj(lambda a, v=v: a.get_gid() == f"revision v{v}") for v in (1, 2, 3, 4))
+    plt.close(fig)
+
+
 def test_a_revision_no_trial_ran_goes_after_the_last_trial():
     assert revision_lines(TRIALS[:3], [{**REVISION}]) == [(2.5, REVISION)]
 

@@ -131,6 +131,15 @@ def revision_lines(trials: Sequence[dict[str, Any]], revisions: Sequence[dict[st
     return out
 
 
+def _revisions_label(rs: Sequence[dict[str, Any]]) -> str:
+    """One label for revisions on one line, short enough to stay inside the axes: "v6–v10: law
+    refitted ×5" when they share an operator (the page's table names each), each in turn otherwise."""
+    ops = {r["operator"] for r in rs}
+    if len(rs) > 1 and len(ops) == 1:
+        return f"v{rs[0].get('version')}–v{rs[-1].get('version')}: {word(rs[0]['operator'])} ×{len(rs)}"
+    return "; ".join(f"v{r.get('version')}: {word(r['operator'])} of {r['target']}" for r in rs)
+
+
 def practice_figure(trials: Sequence[dict[str, Any]], revisions: Sequence[dict[str, Any]],
                     title: str = "practice") -> plt.Figure:
     """The figure of :func:`practice_plot`."""
@@ -151,10 +160,13 @@ def practice_figure(trials: Sequence[dict[str, Any]], revisions: Sequence[dict[s
         w = min(10 if explored.any() else 5, int(plain.sum()))
         ax.plot(idx[plain], np.convolve(ok[plain], np.ones(w) / w, mode="full")[: int(plain.sum())], color="#555",
                 lw=1, ls=":", label=f"success rate (last {w}{' plain' if explored.any() else ''})")
+    at: dict[float, list[dict[str, Any]]] = {}
     for x, r in revision_lines(trials, revisions):
         ax.axvline(x, color="#d95f02", lw=1.2, gid=f"revision v{r.get('version')}")
-        ax.annotate(f"v{r.get('version')}: {word(r['operator'])} of {r['target']}", (x + 0.1, 0.5),
-                    fontsize=7, color="#d95f02", rotation=90, va="center")
+        at.setdefault(x, []).append(r)
+    for x, rs in at.items():         # revisions made together (a round of refits) share one label
+        ax.annotate(_revisions_label(rs), (x + 0.1, 0.5), fontsize=7, color="#d95f02", rotation=90, va="center",
+                    gid="revision label")
     ax.set_ylim(-0.1, 1.1)
     if len(idx):
         ax.set_xlim(idx.min() - 0.7, idx.max() + 0.7)
