@@ -114,7 +114,8 @@ class PracticeConfig:
     def __post_init__(self) -> None:
         counts = {"failures_in_a_row": 1, "window": 0, "success_streak": 1, "max_trials": 1, "seed": 0,
                   "explore_every": 0, "refit_every": 1, "refit_min_segments": 1, "mentor_every": 0,
-                  "mentor_budget": 0, "takeover_budget": 0, "target_window": 1, "shortfall_after": 0, "revert_window": 1, "exam_margin": 1}
+                  "mentor_budget": 0, "takeover_budget": 0, "target_window": 1, "shortfall_after": 0,
+                  "revert_window": 1, "exam_margin": 1}
         for name, low in counts.items():
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= 1_000_000:

@@ -266,9 +266,9 @@ def fit_judge(apn: APN, episodes: Sequence[Episode], store: LabelStore, place: s
     summary: dict[str, Any] = {"segments": int((~mirrored).sum()), "success_labels": int(y[~mirrored].sum()),
                                "mirror_images": int(mirrored.sum())}
     if len(y) < 4:
-        raise InvalidInput(f"only {summary['segments']} labelled segment(s) of the mentor's demonstrations reach this "
-                           f"place ({len(y)} with mirror images); its judge needs at least 4: record more demonstrations",
-                           element=f"places.{place}.judge")
+        raise InvalidInput(f"only {summary['segments']} labelled segment(s) of the mentor's demonstrations reach "
+                           f"this place ({len(y)} with mirror images); its judge needs at least 4: record more "
+                           f"demonstrations", element=f"places.{place}.judge")
     summary.update(label_balance(y[~mirrored]))
     with warnings.catch_warnings():     # expected with few labels (folds with one class): not the user's business
         warnings.simplefilter("ignore", UserWarning)
