@@ -371,3 +371,20 @@ def test_own_samples_join_only_where_the_mentors_law_is_unsure():
     own = LawData(np.vstack([near, far]), np.zeros((100, 1)), np.arange(100))
     kept = novel_samples(own, law, 0.5)
     assert set(kept.episode.tolist()) == set(range(50, 100))
+
+
+def test_no_repair_is_made_with_too_few_trials_left_to_check_it(tmp_path):
+    """Like a refit, a repair made while practice learns must leave room for its watch: with fewer
+    trials left than the watch needs, constant failure changes nothing and says why."""
+    model = _model(tmp_path)
+    practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, max_trials=20, revert_window=10,
+                                                              exam=True), name="c")
+    state = PracticeState(trial=12, trials=[{"trial": i, "success": False} for i in range(12)],
+                          failed_since_repair=list(range(12)))
+    practice._repair(state)
+    (none,) = state.revisions
+    assert none["operator"] == "none" and "8 trials are left, fewer than the 10" in none["reason"]
+    assert model.version == 0 and state.failed_since_repair == [] and state.trying is None
+    early = PracticeState(trial=5, trials=state.trials[:5], failed_since_repair=list(range(5)))
+    practice._repair(early)                                       # room left: the repair loop runs as ever
+    assert "trials are left" not in early.revisions[-1]["reason"]

@@ -383,8 +383,7 @@ class Practice:
         elif self._constant_failure(state):
             self._repair(state)
         if not state.done and cfg.learn and (state.watch is None or not cfg.exam) \
-                and state.trial - state.last_refit_trial - 1 >= cfg.refit_every \
-                and cfg.max_trials - state.trial >= self._watch_trials():
+                and state.trial - state.last_refit_trial - 1 >= cfg.refit_every and self._room_to_watch(state):
             self._refit(state)
 
     # -- learning from practice ----------------------------------------------------------------------
@@ -534,6 +533,10 @@ class Practice:
         if cfg.exam:
             return cfg.revert_window
         return cfg.revert_window * (cfg.explore_every if cfg.explore > 0 and cfg.explore_every > 1 else 1)
+
+    def _room_to_watch(self, state: PracticeState) -> bool:
+        """Whether enough trials are left to watch a revision made now (:meth:`_watch_trials`)."""
+        return self.config.max_trials - state.trial >= self._watch_trials()
 
     def _plain(self, state: PracticeState) -> list[dict[str, Any]]:
         return [t for t in state.trials if not t.get("explored")]
@@ -709,6 +712,16 @@ class Practice:
                 self._record(state, rev, d.to_json())
                 apn = self.model.apn
                 d = diagnosis(apn, trying["failed"])
+        if self.config.learn and not self._room_to_watch(state):
+            # a repair nobody can check would go into the skill untried (a place added 9 trials before
+            # the end of a trial run made every pushed evaluation trial alternate between its two transitions)
+            left = self.config.max_trials - state.trial
+            state.revisions.append({"version": None, "operator": "none", "target": "", "after_trial": state.trial - 1,
+                                    "scenario": self.name, "diagnosis": d.to_json(),
+                                    "reason": f"constant failure, but {left} trials are left, fewer than the "
+                                              f"{self._watch_trials()} it takes to check a repair; the net stays as it is"})
+            state.failed_since_repair = []
+            return
         fix = repair(apn, d, self.learners, exhausted=frozenset(state.lambda_exhausted), skip=frozenset(state.tried))
         if fix is None:
             state.repairs_without_effect += 1
