@@ -716,20 +716,14 @@ class Practice:
             # a repair nobody can check would go into the skill untried (a place added 9 trials before
             # the end of a trial run made every pushed evaluation trial alternate between its two transitions)
             left = self.config.max_trials - state.trial
-            state.revisions.append({"version": None, "operator": "none", "target": "", "after_trial": state.trial - 1,
-                                    "scenario": self.name, "diagnosis": d.to_json(),
-                                    "reason": f"constant failure, but {left} trials are left, fewer than the "
-                                              f"{self._watch_trials()} it takes to check a repair; the net stays as it is"})
-            state.failed_since_repair = []
+            self._no_repair(state, d, f"{left} trials are left, fewer than the {self._watch_trials()} it takes to "
+                                      "check a repair; the net stays as it is")
             return
         fix = repair(apn, d, self.learners, exhausted=frozenset(state.lambda_exhausted), skip=frozenset(state.tried))
         if fix is None:
             state.repairs_without_effect += 1
-            state.revisions.append({"version": None, "operator": "none", "target": "", "after_trial": state.trial - 1,
-                                    "scenario": self.name, "reason": "constant failure, but no repair operator applies"
-                                    + (f" that was not tried already ({', '.join(state.tried)})" if state.tried else ""),
-                                    "diagnosis": d.to_json()})
-            state.failed_since_repair = []
+            self._no_repair(state, d, "no repair operator applies"
+                            + (f" that was not tried already ({', '.join(state.tried)})" if state.tried else ""))
             return
         first = self.model.version
         for rev in fix.revisions:
@@ -739,6 +733,13 @@ class Practice:
                         "after_trial": state.trial - 1, "visited": sorted(d.visited),
                         "failed": list(state.failed_since_repair)}
         self._watch(state, first, self.model.version)
+        state.failed_since_repair = []
+
+    def _no_repair(self, state: PracticeState, d: Any, why: str) -> None:
+        """Constant failure that changes nothing: recorded with ``why`` and the diagnosis."""
+        state.revisions.append({"version": None, "operator": "none", "target": "", "after_trial": state.trial - 1,
+                                "scenario": self.name, "reason": f"constant failure, but {why}",
+                                "diagnosis": d.to_json()})
         state.failed_since_repair = []
 
 
