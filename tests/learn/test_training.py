@@ -80,8 +80,11 @@ def _trace(apn, states, names, fired):
         if t is not None:
             where, k0 = next(iter(apn.transition(t).outputs)), k
     cols = {n: np.asarray(states, float)[:, i] for i, n in enumerate(names)}
-    return SimpleNamespace(value=cols.__getitem__, place_ids=ids, marking=marking,
-                           firings=[SimpleNamespace(tick=k, transition=t) for k, t in fired])
+    from multiform.runtime.trace import Trace
+    tr = SimpleNamespace(value=cols.__getitem__, place_ids=ids, marking=marking,
+                         firings=[SimpleNamespace(tick=k, transition=t) for k, t in fired])
+    tr.stays = lambda place: Trace.stays(tr, place)
+    return tr
 
 
 def test_own_stays_that_went_on_lower_the_floor_failed_ones_do_not(demos):

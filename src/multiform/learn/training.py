@@ -346,21 +346,28 @@ def own_stay_floors(apn: APN, traces: Sequence[Any], regions: PlaceRegions) -> d
     angles), and a state the robot itself went on from has not left its place: an "outside P1"
     fitted to the mentor's floor alone fired in the middle of ordinary swing-ups (main job,
     seed 0, 56.5 %)."""
-    forward = {t.id for t in apn.transitions if not apn.leads_to_failure(t.id)}
     floors = {p: 0.0 for p in regions.places_}
     for tr in traces:
         V = np.column_stack([tr.value(n) for n in regions.input_names]).astype(np.float64)
-        left = {f.tick: f.transition for f in tr.firings}
+        on = went_on(apn, tr)
         for j, place in enumerate(regions.places_):
-            if place not in tr.place_ids:
-                continue
-            held = (tr.marking[:, list(tr.place_ids).index(place)] > 0).astype(np.int8)
-            edges = np.diff(np.concatenate([[0], held, [0]]))
-            for s, e in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
-                t = left.get(int(e))                   # the firing that took the token away at tick e
-                if t in forward and place not in apn.transition(t).outputs:
+            for s, e in tr.stays(place):
+                if on(place, e):
                     floors[place] = min(floors[place], float(regions.logits(V[s:e])[:, j].min()))
     return floors
+
+
+def went_on(apn: APN, trace: Any) -> Callable[[str, int], bool]:
+    """Whether a stay of ``trace`` in a place, ending at tick e, went on as the skill was written:
+    the firing that took the token away at e is a transition of ``apn`` (the mentor's net) into a
+    place that is not a failure."""
+    forward = {t.id for t in apn.transitions if not apn.leads_to_failure(t.id)}
+    left = {f.tick: f.transition for f in trace.firings}
+
+    def on(place: str, e: int) -> bool:
+        t = left.get(e)
+        return t in forward and place not in apn.transition(t).outputs
+    return on
 
 
 @dataclass

@@ -78,6 +78,15 @@ class Trace:
             return self.values[:, self.value_names.index(name)]
         return self.obs[:, self.observation_names.index(name)]
 
+    def stays(self, place: str) -> list[tuple[int, int]]:
+        """The tick ranges [s, e) during which ``place`` held a token; a stay ended by a firing
+        ends at that firing's tick (none if the net has no such place)."""
+        if place not in self.place_ids:
+            return []
+        held = (self.marking[:, list(self.place_ids).index(place)] > 0).astype(np.int8)
+        edges = np.diff(np.concatenate([[0], held, [0]]))
+        return [(int(s), int(e)) for s, e in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1))]
+
     def fired(self) -> list[str]:
         return [f.transition for f in self.firings]
 
