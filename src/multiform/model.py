@@ -533,6 +533,19 @@ class ModelLearners:
         return name, {"model": name, "variables": list(cond.input_names), "into": into, "rather_than": other,
                       "leave_below_logit": round(floor, 3)}
 
+    def with_floor(self, condition: str, floor: float) -> tuple[str, dict[str, Any]]:
+        """A copy of the region condition ``condition`` that leaves its place below ``floor`` instead,
+        saved under a fresh name."""
+        from .learn.region import RegionCondition
+        c = self.model.conditions().get(condition)
+        if not isinstance(c, RegionCondition):
+            raise InvalidInput(f"{condition!r} is not a region condition", file=str(self.model.path))
+        new = RegionCondition(c.regions, c.mode, c.into, c.rather_than, leave_below=floor)
+        name = self._fresh(f"in_{c.into}" if c.mode == "into" else f"outside_{c.rather_than}")
+        self.model.save_condition(name, new)
+        return name, {"model": name, "variables": list(new.input_names), "into": c.into, "rather_than": c.rather_than,
+                      "leave_below_logit": round(floor, 3)}
+
     def outside_condition(self, apn: APN, place: str, states: Sequence[Sequence[float]]) -> tuple[str, dict[str, Any]]:
         regions = self._regions()
         leaving = place if place in regions.places_ else None

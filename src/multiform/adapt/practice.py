@@ -24,6 +24,13 @@ With ``learn`` (learning from practice, the paper's third form in full) the loop
   that contradicts the robot's own grade is counted;
 * has the mentor take over failed trials, up to ``takeover_budget`` (:mod:`.takeover`): a
   demonstration from where the robot knew least, learned from at the next refit;
+* on every ``hold_off_every``-th exploring trial the experimenter pushes, takes each way back once
+  and then holds it off down to the logit ``hold_off_floor`` (:mod:`.hold_off`): each later stay in
+  the way back's place records how far
+  out the way back would have fired again and whether the law went on; a trial in which it would
+  have is a probe, no evidence for repair. Where the probes favour it over the way back's own
+  success rate when it fires again, its floor is lowered (a ``set_condition`` revision, watched like
+  every other);
 * gives the repair candidates it tried a new chance once new laws have passed their exam: they
   were judged with the old ones (:meth:`Practice._after_exam`);
 * watches every revision: if the robot's own success rate over the next ``revert_window`` plain
@@ -61,10 +68,11 @@ from ..learn.training import LawSettings, fit_law
 from ..learn.views import is_demonstration, place_episode
 from ..model import ModelLearners, SkillModel
 from ..petri.net import APN
-from ..petri.revision import Revision, refit_law, revert
+from ..petri.revision import Revision, refit_law, revert, set_condition
 from ..runtime.executor import Executor
 from ..runtime.trace import Trace
 from .diagnosis import diagnose, is_evidence
+from .hold_off import choose_floor, held_off, probe_stays, ways_back
 from .experience import DEFAULT_MARGIN, Experience, select_segments
 from .explore import ExploringLaw, law_noise
 from .repair import move_limit, repair
@@ -109,17 +117,22 @@ class PracticeConfig:
     exam_margin: int = 2
     novelty: float = 0.0
     takeover_budget: int = 0
+    hold_off_every: int = 0
+    hold_off_floor: float = -10.0
     check_demonstrations: bool = True
 
     def __post_init__(self) -> None:
         counts = {"failures_in_a_row": 1, "window": 0, "success_streak": 1, "max_trials": 1, "seed": 0,
                   "explore_every": 0, "refit_every": 1, "refit_min_segments": 1, "mentor_every": 0,
                   "mentor_budget": 0, "takeover_budget": 0, "target_window": 1, "shortfall_after": 0,
-                  "revert_window": 1, "exam_margin": 1}
+                  "revert_window": 1, "exam_margin": 1, "hold_off_every": 0}
         for name, low in counts.items():
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= 1_000_000:
                 raise InvalidInput(f"must be a whole number in {low}..1000000, got {v!r}", element=name)
+        if isinstance(self.hold_off_floor, bool) or not isinstance(self.hold_off_floor, (int, float)) \
+                or not -1e6 <= self.hold_off_floor <= 0.0:
+            raise InvalidInput(f"must be a logit in -1000000..0, got {self.hold_off_floor!r}", element="hold_off_floor")
         for name in ("failure_rate", "margin", "target_rate", "revert_p", "explore", "explore_tau", "novelty"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and 0.0 <= v <= (10.0 if name.startswith("explore")
@@ -176,7 +189,7 @@ class PracticeState:
         """(successes, failures) in a row at the end; trials that are no evidence are passed over."""
         s = f = 0
         for tr in reversed(self.trials):
-            if not tr.get("evidence", True):
+            if not tr.get("evidence", True) or tr.get("probe"):
                 continue
             if tr["success"] and not f:
                 s += 1
@@ -278,7 +291,7 @@ class Practice:
         self.folder.mkdir(parents=True, exist_ok=True)
         state = self.load_state()
         env = self.model.make_env()
-        executor, explorer, version = None, None, -1
+        executor, explorer, prober, version = None, None, None, -1
         judges = self.model.judges() if cfg.use_judges else {}
         if cfg.check_demonstrations and state.trial == 0 and not state.checked:
             self._check_definition(state)
@@ -293,10 +306,11 @@ class Practice:
                 version = self.model.version
                 executor = self.model.executor(env)
                 explorer = self._explorer(executor) if cfg.explore > 0 else None
+                prober = self._prober(explorer) if explorer is not None and cfg.hold_off_every else None
                 judges = self.model.judges() if cfg.use_judges else {}
             k = state.trial
             t0 = time.perf_counter()
-            trace, draw, explores, view = self._trial(state, executor, explorer)
+            trace, draw, explores, view = self._trial(state, executor, explorer, prober)
             if trace.outcome == "fault":
                 # a non-finite value is the model's or the simulator's fault, not the skill's: nothing
                 # is learned or repaired from it, and practice stops until someone looks
@@ -310,12 +324,15 @@ class Practice:
                     view.grade(grade, success)
                 view.close()
             summary = self._summary(k, draw, version, trace, grade, success, explores, t0)
+            if prober is not None and explores and self._holds_off(k):
+                summary.update(self._probed(trace, prober.apn))
             if cfg.learn and grade is not None:
-                summary.update(self._learn_from(state, k, trace, grade, executor.apn, success))
+                summary.update(self._learn_from(state, k, trace, grade, executor.apn, success,
+                                                bool(summary.get("probe"))))
                 if "revised" in summary.get("mentor", {}):
                     judges = self.model.judges()
             state.trials.append(summary)
-            if not success and is_evidence(trace.outcome):
+            if not success and is_evidence(trace.outcome) and not summary.get("probe"):
                 trace.save(self._trace_path(k))
                 state.failed_since_repair.append(k)
             state.trial += 1
@@ -328,10 +345,11 @@ class Practice:
         env.close()
         return state
 
-    def _trial(self, state: PracticeState, executor: Executor, explorer: Executor | None
-               ) -> tuple[Trace, int, bool, Any]:
+    def _trial(self, state: PracticeState, executor: Executor, explorer: Executor | None,
+               prober: Executor | None = None) -> tuple[Trace, int, bool, Any]:
         """Run trial ``state.trial`` on its own draw, or on the draw an exam replays; exploring when
-        due and not replaying. Returns its trace, the draw, whether it explored, and its view (or None)."""
+        due and not replaying, with the ways back held off when due (``prober``). Returns its trace,
+        the draw, whether it explored, and its view (or None)."""
         cfg = self.config
         k = state.trial
         draw = self._exam_draw(state)
@@ -341,7 +359,7 @@ class Practice:
         if explores:
             for i, law in enumerate(sorted(explorer.laws)):
                 explorer.laws[law].reseed(cfg.trial_seed(k) * 31 + i)
-            runner = explorer
+            runner = prober if prober is not None and self._holds_off(k) else explorer
         view = self.observe(k, executor) if self.observe else None
         trace = runner.run(seed=cfg.trial_seed(draw), options=self.options(draw),
                            perturb=self.perturb(draw) if self.perturb else None, observer=view)
@@ -382,6 +400,8 @@ class Practice:
                                  f"{cfg.target_window} plain trials")
         elif self._constant_failure(state):
             self._repair(state)
+        if not state.done and cfg.learn and cfg.hold_off_every and state.watch is None and self._room_to_watch(state):
+            self._lower_floors(state)
         if not state.done and cfg.learn and (state.watch is None or not cfg.exam) \
                 and state.trial - state.last_refit_trial - 1 >= cfg.refit_every and self._room_to_watch(state):
             self._refit(state)
@@ -395,9 +415,96 @@ class Practice:
         return Executor(executor.apn, executor.env, laws, self.model.conditions(), executor.inverse_model,
                         net_version=executor.net_version)
 
+    def _prober(self, explorer: Executor) -> Executor | None:
+        """The explorer with the net's ways back held off (None if the net has none)."""
+        conditions = self.model.conditions()
+        ways = ways_back(explorer.apn, conditions)
+        if not ways:
+            return None
+        held = held_off(conditions, ways, self.config.hold_off_floor)
+        return Executor(explorer.apn, explorer.env, explorer.laws, held,
+                        explorer.inverse_model, net_version=explorer.net_version)
+
+    def _holds_off(self, k: int) -> bool:
+        """Trial ``k`` holds the ways back off: every ``hold_off_every``-th exploring trial with a push."""
+        cfg = self.config
+        if not cfg.hold_off_every or self.perturb is None or not cfg.explores(k) or self.perturb(k) is None:
+            return False
+        pushed = sum(1 for j in range(k) if cfg.explores(j) and self.perturb(j) is not None)
+        return pushed % cfg.hold_off_every == cfg.hold_off_every - 1
+
+    def _probed(self, trace: Trace, apn: APN) -> dict[str, Any]:
+        """What a trial with the ways back held off shows: per way back, each stay in its place
+        (:func:`~.hold_off.probe_stays`); ``probe`` if a way back would have fired."""
+        conditions = self.model.conditions()
+        apn0 = self.model.history.version(0)
+        held, probe = [], False
+        for w in ways_back(apn, conditions):
+            c = conditions[w.condition]
+            stays = probe_stays(apn0, trace, w, c)
+            probe = probe or any(m is not None and m < w.floor for m, _ in stays)
+            held.append({"transition": w.transition, "place": w.place, "towards": c.into or "outside",
+                         "floor": round(w.floor, 4), "stays": stays})
+        return {"held_off": held, "probe": probe}
+
+    def _lower_floors(self, state: PracticeState) -> None:
+        """Lower a way back's floor where the probes favour letting the law go on over the way back
+        (:func:`~.hold_off.choose_floor`): one ``set_condition`` revision, watched. The way back's own
+        success rate is read off the trials, no probes, that fired it again (twice or more) in a net
+        where it left the same place for the same place."""
+        apn = self.model.apn
+        conditions = self.model.conditions()
+        nets: dict[int, APN] = {}
+        for w in ways_back(apn, conditions):
+            c = conditions[w.condition]
+            towards = c.into or "outside"
+            stays = [s for t in state.trials for h in t.get("held_off", ())
+                     if h["place"] == w.place and h["towards"] == towards for s in h["stays"]]
+            same = []
+            for t in state.trials:
+                if t.get("probe") or t["fired"].count(w.transition) < 2 or not t.get("evidence", True):
+                    continue
+                v = t["net_version"]
+                if v not in nets:
+                    nets[v] = self.model.history.version(v)
+                if w.transition in nets[v].transition_ids and \
+                        nets[v].transition(w.transition).inputs == apn.transition(w.transition).inputs:
+                    same.append(bool(t["success"]))
+            if len(same) < 3:
+                continue
+            rate = sum(same) / len(same)
+            best = choose_floor(stays, w.floor, rate)
+            if best is None:
+                continue
+            floor, gain = best
+            key = f"floor:{w.transition}:{floor:.3f}"
+            if key in state.tried:
+                continue
+            below = [s for s in stays if s[0] is not None and s[0] < w.floor]
+            name, info = self.learners.with_floor(w.condition, floor)
+            t = apn.transition(w.transition)
+            ref = {"model": name, "unless": list(t.condition.unless)} if t.condition.unless else {"model": name}
+            probes = sorted({t["trial"] for t in state.trials if t.get("probe")})
+            _, rev = set_condition(
+                apn, w.transition, ref,
+                f"with the way back held off once taken, {sum(h for _, h in below)} of {len(below)} stays in "
+                f"{w.place} that it would have ended went on; firing again, it saved {sum(same)} of {len(same)} "
+                f"trials: "
+                f"floor {w.floor:.2f} -> {floor:.2f}",
+                {**info, "floor_before": round(w.floor, 4), "stays_below": len(below),
+                 "went_on": int(sum(h for _, h in below)), "way_fired_trials": len(same),
+                 "way_success": int(sum(same)), "gain": round(gain, 3), "probe_trials": probes,
+                 "after_trial": state.trial - 1})
+            first = self.model.version
+            self._record(state, rev)
+            state.tried.append(key)
+            self._watch(state, first, self.model.version)
+            return
+
     def _learn_from(self, state: PracticeState, k: int, trace: Trace, grade: Any, apn: APN,
-                    success: bool = True) -> dict[str, Any]:
-        """The mentor's grade (on schedule), then the own segments the trial adds."""
+                    success: bool = True, probe: bool = False) -> dict[str, Any]:
+        """The mentor's grade (on schedule), then the own segments the trial adds; the mentor takes
+        over a failed trial that was no probe."""
         cfg, out = self.config, {}
         source = self.source(k)
         verdicts: dict[tuple[int, int], bool] = {}
@@ -409,7 +516,7 @@ class Practice:
             out["mentor"] = account
         taken = {t["trial"] for t in state.takeovers}
         if (self.takeover is not None and not success and is_evidence(trace.outcome) and k not in taken
-                and len(taken) < cfg.takeover_budget):
+                and len(taken) < cfg.takeover_budget and not probe):
             out["takeover"] = self._take_over(source, trace, apn)
             state.takeovers.append({"trial": k, **out["takeover"]})
         own = select_segments(apn, trace, grade, source, self.name, k, cfg.margin, verdicts)
@@ -658,7 +765,8 @@ class Practice:
             return True
         if cfg.window > 0:
             since = [t for t in state.trials[-cfg.window:]
-                     if t["trial"] >= (state.revisions[-1]["after_trial"] + 1 if state.revisions else 0)]
+                     if t["trial"] >= (state.revisions[-1]["after_trial"] + 1 if state.revisions else 0)
+                     and not t.get("probe")]
             if len(since) >= cfg.window:
                 rate = sum(not t["success"] for t in since) / len(since)
                 return rate >= cfg.failure_rate
