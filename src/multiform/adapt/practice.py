@@ -454,7 +454,7 @@ class Practice:
         where it left the same place for the same place."""
         apn = self.model.apn
         conditions = self.model.conditions()
-        nets: dict[int, APN] = {}
+        nets = self.model.history.versions()
         for w in ways_back(apn, conditions):
             c = conditions[w.condition]
             towards = c.into or "outside"
@@ -464,11 +464,9 @@ class Practice:
             for t in state.trials:
                 if t.get("probe") or t["fired"].count(w.transition) < 2 or not t.get("evidence", True):
                     continue
-                v = t["net_version"]
-                if v not in nets:
-                    nets[v] = self.model.history.version(v)
-                if w.transition in nets[v].transition_ids and \
-                        nets[v].transition(w.transition).inputs == apn.transition(w.transition).inputs:
+                net = nets[t["net_version"]]
+                if w.transition in net.transition_ids and \
+                        net.transition(w.transition).inputs == apn.transition(w.transition).inputs:
                     same.append(bool(t["success"]))
             if len(same) < 3:
                 continue
