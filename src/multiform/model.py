@@ -540,7 +540,7 @@ class ModelLearners:
         c = self.model.conditions().get(condition)
         if not isinstance(c, RegionCondition):
             raise InvalidInput(f"{condition!r} is not a region condition", file=str(self.model.path))
-        new = RegionCondition(c.regions, c.mode, c.into, c.rather_than, leave_below=floor)
+        new = c.with_floor(floor)
         name = self._fresh(f"in_{c.into}" if c.mode == "into" else f"outside_{c.rather_than}")
         self.model.save_condition(name, new)
         return name, {"model": name, "variables": list(new.input_names), "into": c.into, "rather_than": c.rather_than,

@@ -62,8 +62,7 @@ class Once:
 
     def __init__(self, condition: RegionCondition, transition: str, below: float):
         self.condition = condition
-        self.after = RegionCondition(condition.regions, condition.mode, condition.into, condition.rather_than,
-                                     min(below, condition.leave_below))
+        self.after = condition.with_floor(min(below, condition.leave_below))
         self.input_names = (*condition.input_names, f"fires_{transition}")
 
     def __call__(self, x: np.ndarray) -> bool:

@@ -26,11 +26,10 @@ With ``learn`` (learning from practice, the paper's third form in full) the loop
   demonstration from where the robot knew least, learned from at the next refit;
 * on every ``hold_off_every``-th exploring trial the experimenter pushes, takes each way back once
   and then holds it off down to the logit ``hold_off_floor`` (:mod:`.hold_off`): each later stay in
-  the way back's place records how far
-  out the way back would have fired again and whether the law went on; a trial in which it would
-  have is a probe, no evidence for repair. Where the probes favour it over the way back's own
-  success rate when it fires again, its floor is lowered (a ``set_condition`` revision, watched like
-  every other);
+  the way back's place records how far out the way back would have fired again and whether the law
+  went on; a trial in which it would have is a probe, no evidence for repair. Where the probes
+  favour it over the way back's own success rate when it fires again, its floor is lowered (a
+  ``set_condition`` revision, watched like every other);
 * gives the repair candidates it tried a new chance once new laws have passed their exam: they
   were judged with the old ones (:meth:`Practice._after_exam`);
 * watches every revision: if the robot's own success rate over the next ``revert_window`` plain
@@ -67,7 +66,7 @@ from ..learn.labels import is_mentor, records_from_episode
 from ..learn.training import LawSettings, fit_law
 from ..learn.views import is_demonstration, place_episode
 from ..model import ModelLearners, SkillModel
-from ..petri.net import APN
+from ..petri.net import APN, Condition
 from ..petri.revision import Revision, refit_law, revert, set_condition
 from ..runtime.executor import Executor
 from ..runtime.trace import Trace
@@ -132,7 +131,8 @@ class PracticeConfig:
                 raise InvalidInput(f"must be a whole number in {low}..1000000, got {v!r}", element=name)
         if isinstance(self.hold_off_floor, bool) or not isinstance(self.hold_off_floor, (int, float)) \
                 or not -1e6 <= self.hold_off_floor <= 0.0:
-            raise InvalidInput(f"must be a logit in -1000000..0, got {self.hold_off_floor!r}", element="hold_off_floor")
+            raise InvalidInput(f"must be a logit in -1000000..0, got {self.hold_off_floor!r}",
+                               element="hold_off_floor")
         for name in ("failure_rate", "margin", "target_rate", "revert_p", "explore", "explore_tau", "novelty"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and 0.0 <= v <= (10.0 if name.startswith("explore")
@@ -310,7 +310,7 @@ class Practice:
                 judges = self.model.judges() if cfg.use_judges else {}
             k = state.trial
             t0 = time.perf_counter()
-            trace, draw, explores, view = self._trial(state, executor, explorer, prober)
+            trace, draw, explores, probing, view = self._trial(state, executor, explorer, prober)
             if trace.outcome == "fault":
                 # a non-finite value is the model's or the simulator's fault, not the skill's: nothing
                 # is learned or repaired from it, and practice stops until someone looks
@@ -324,7 +324,7 @@ class Practice:
                     view.grade(grade, success)
                 view.close()
             summary = self._summary(k, draw, version, trace, grade, success, explores, t0)
-            if prober is not None and explores and self._holds_off(k):
+            if probing:
                 summary.update(self._probed(trace, prober.apn))
             if cfg.learn and grade is not None:
                 summary.update(self._learn_from(state, k, trace, grade, executor.apn, success,
@@ -346,24 +346,25 @@ class Practice:
         return state
 
     def _trial(self, state: PracticeState, executor: Executor, explorer: Executor | None,
-               prober: Executor | None = None) -> tuple[Trace, int, bool, Any]:
+               prober: Executor | None = None) -> tuple[Trace, int, bool, bool, Any]:
         """Run trial ``state.trial`` on its own draw, or on the draw an exam replays; exploring when
         due and not replaying, with the ways back held off when due (``prober``). Returns its trace,
-        the draw, whether it explored, and its view (or None)."""
+        the draw, whether it explored, whether it held the ways back off, and its view (or None)."""
         cfg = self.config
         k = state.trial
         draw = self._exam_draw(state)
         explores = explorer is not None and cfg.explores(k) and draw is None
         draw = k if draw is None else draw
         runner = executor
+        probing = explores and prober is not None and self._holds_off(k)
         if explores:
             for i, law in enumerate(sorted(explorer.laws)):
                 explorer.laws[law].reseed(cfg.trial_seed(k) * 31 + i)
-            runner = prober if prober is not None and self._holds_off(k) else explorer
+            runner = prober if probing else explorer
         view = self.observe(k, executor) if self.observe else None
         trace = runner.run(seed=cfg.trial_seed(draw), options=self.options(draw),
                            perturb=self.perturb(draw) if self.perturb else None, observer=view)
-        return trace, draw, explores, view
+        return trace, draw, explores, probing, view
 
     def _summary(self, k: int, draw: int, version: int, trace: Trace, grade: Any, success: bool, explores: bool,
                  t0: float) -> dict[str, Any]:
@@ -480,15 +481,13 @@ class Practice:
                 continue
             below = [s for s in stays if s[0] is not None and s[0] < w.floor]
             name, info = self.learners.with_floor(w.condition, floor)
-            t = apn.transition(w.transition)
-            ref = {"model": name, "unless": list(t.condition.unless)} if t.condition.unless else {"model": name}
+            ref = Condition.learned(name, apn.transition(w.transition).condition.unless).to_data()
             probes = sorted({t["trial"] for t in state.trials if t.get("probe")})
             _, rev = set_condition(
                 apn, w.transition, ref,
                 f"with the way back held off once taken, {sum(h for _, h in below)} of {len(below)} stays in "
                 f"{w.place} that it would have ended went on; firing again, it saved {sum(same)} of {len(same)} "
-                f"trials: "
-                f"floor {w.floor:.2f} -> {floor:.2f}",
+                f"trials: floor {w.floor:.2f} -> {floor:.2f}",
                 {**info, "floor_before": round(w.floor, 4), "stays_below": len(below),
                  "went_on": int(sum(h for _, h in below)), "way_fired_trials": len(same),
                  "way_success": int(sum(same)), "gain": round(gain, 3), "probe_trials": probes,

@@ -376,6 +376,10 @@ class RegionCondition:
             return all(v < b for v, b in zip(z.tolist(), self._outside_list))
         return bool(z[self._i] >= 0.0 and (self._j < 0 or z[self._j] < self.leave_below))
 
+    def with_floor(self, leave_below: float) -> RegionCondition:
+        """The same condition leaving its place below ``leave_below`` instead."""
+        return RegionCondition(self.regions, self.mode, self.into, self.rather_than, leave_below)
+
     def holds(self, X: np.ndarray) -> np.ndarray:
         """Vectorised :meth:`__call__` over rows."""
         Z = self.regions.logits(X)
