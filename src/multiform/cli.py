@@ -488,7 +488,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     from .job import Job, JobConfig
-    cfg = JobConfig(demos=args.demos, eval_trials=args.eval_trials, ablation_trials=args.ablation_trials,
+    ablations = JobConfig.ablation_trials if args.ablation_trials is None else args.ablation_trials
+    cfg = JobConfig(demos=args.demos, eval_trials=args.eval_trials, ablation_trials=ablations,
                     practice_max_trials=args.max_trials, workers=args.workers, seed=args.seed,
                     videos=not args.no_video, inverse_model=not args.reference_controller,
                     learn=args.learn_from_practice, practice_budget=args.practice_budget, ray=args.ray)
@@ -717,7 +718,8 @@ def _add_run_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--demos", type=_count(1, 1000), default=None,
                    help="demonstrations (default: the task's DEMOS: pendulum 10, nunchaku 10)")
     p.add_argument("--eval-trials", type=_count(1, 1_000_000), default=200)
-    p.add_argument("--ablation-trials", type=_count(0, 1_000_000), default=100)
+    p.add_argument("--ablation-trials", type=_count(0, 1_000_000), default=None,
+                   help="the first evaluation trials also run by each ablation (default: 50)")
     p.add_argument("--max-trials", type=_count(1, 100_000), default=30, help="practice trials per scenario at most")
     p.add_argument("--workers", type=_count(1, 256), default=2)
     p.add_argument("--seed", type=_count(0, 40_000), default=0)
