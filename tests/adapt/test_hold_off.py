@@ -1,4 +1,5 @@
-"""Ways back held off in practice: what a probe records, and the floor the robot lowers from it."""
+"""Ways back held off in practice: what a probe records, and the floor the robot lowers from it;
+a deeper floor examined at the end of practice."""
 
 from __future__ import annotations
 
@@ -148,11 +149,102 @@ def test_no_floor_is_lowered_without_enough_trials_that_fired_the_way_back(tmp_p
     assert model.version == 1
 
 
+@pytest.mark.parametrize("name", ["hold_off_floor", "floor_exam"])
 @pytest.mark.parametrize("bad", [0.5, float("nan"), True, "deep"])
-def test_a_probe_floor_must_be_a_logit_at_or_below_zero(bad):
+def test_a_probe_or_examined_floor_must_be_a_logit_at_or_below_zero(name, bad):
     from multiform.errors import InvalidInput
-    with pytest.raises(InvalidInput, match="hold_off_floor"):
-        PracticeConfig(hold_off_floor=bad)
+    with pytest.raises(InvalidInput, match=name):
+        PracticeConfig(**{name: bad})
+
+
+def _ended_practice(tmp_path, **config) -> tuple[Practice, PracticeState]:
+    """Eight plain trials of the net with its way back t7, the last four successes (the target
+    reached); t7 fired in trials 0, 1, 3 and 5, two of which failed."""
+    model = _model_with_way_back(tmp_path)
+    cfg = PracticeConfig(**{"learn": True, "exam": True, "floor_exam": -4.0, "target_rate": 0.9, "target_window": 4,
+                            "success_streak": 10**6, "max_trials": 100, "revert_window": 10, **config})
+    back, plain = ["t0", "t1", "t7", "t1", "t6"], ["t0", "t1", "t6"]
+    trials = [{"trial": k, "success": k not in (0, 3), "net_version": 1, "fired": back if k in (0, 1, 3, 5) else plain}
+              for k in range(8)]
+    return Practice(model, tmp_path / "p", cfg, name="c"), PracticeState(trial=8, trials=trials)
+
+
+def _replay(practice: Practice, state: PracticeState, outcomes: list[bool]) -> None:
+    for ok in outcomes:
+        draw = practice._exam_draw(state)
+        state.trials.append({"trial": state.trial, "draw": draw, "success": ok, "net_version": practice.model.version,
+                             "fired": ["t0", "t1", "t7", "t1", "t6"]})
+        state.trial += 1
+        practice._after_trial(state)
+
+
+def test_at_its_target_practice_examines_a_deeper_floor_on_the_trials_that_took_the_way_back(tmp_path):
+    practice, state = _ended_practice(tmp_path)
+    model = practice.model
+    practice._after_trial(state)
+    assert not state.done and state.floor_examined
+    rev = model.history.revisions()[-1]
+    assert (rev.operator, rev.target, model.version) == ("set_condition", "t7", 2)
+    assert rev.evidence["floor_before"] == -0.5 and rev.evidence["leave_below_logit"] == -4.0
+    assert rev.evidence["replayed_trials"] == [0, 1, 3, 5]          # only these can change: t7 fired in them
+    assert state.watch["draws"] == [0, 1, 3, 5] and state.watch["before"] == [False, True, False, True]
+    # replayable: the revision's condition is the way back with the deeper floor, yielding to t1 as before
+    cond = History(model.path / "skill.yaml").versions()[2].transition("t7").condition
+    assert cond.unless == ("t1",) and model.conditions()[cond.model].leave_below == -4.0
+    # a killed practice resumes the exam where it was
+    _replay(practice, state, [True])
+    practice.save_state(state)
+    state = practice.load_state()
+    assert state.floor_examined and state.watch["must_win"] and practice._exam_draw(state) == 1
+    # the deeper floor saves both trials that failed: kept, and practice stops as it would have
+    _replay(practice, state, [True, True, True])
+    assert state.done and state.watch is None and model.version == 2
+    assert state.stop_reason.startswith("own success rate") and state.stop_reason.endswith("floor examined")
+
+
+@pytest.mark.parametrize("outcomes, kept", [
+    ([False, True, False, True], False),     # the same trials: nothing won, so nothing for a change no failure asked for
+    ([True, False, True, True], False),      # won two, lost one
+    ([True, True, False, True], True),       # won one, lost none
+    ([True, False, True, False], False),     # won two, lost two
+])
+def test_a_deeper_floor_is_kept_only_if_it_wins_its_exam(tmp_path, outcomes, kept):
+    practice, state = _ended_practice(tmp_path)
+    practice._after_trial(state)
+    _replay(practice, state, outcomes)
+    rev = practice.model.history.revisions()[-1]
+    assert state.done and (rev.operator == "set_condition") == kept
+    if not kept:
+        assert rev.operator == "revert" and rev.evidence["reverted"] == 2
+    t7 = practice.model.apn.transition("t7").condition.model
+    assert practice.model.conditions()[t7].leave_below == (-4.0 if kept else -0.5)
+
+
+def test_failures_during_the_floor_exam_set_off_no_repair(tmp_path):
+    practice, state = _ended_practice(tmp_path)
+    practice._after_trial(state)
+    _replay(practice, state, [False, False, False])
+    assert state.watch is not None and [r.operator for r in practice.model.history.revisions()][-1] == "set_condition"
+
+
+def test_no_floor_exam_where_no_way_back_fired_or_it_is_off(tmp_path):
+    practice, state = _ended_practice(tmp_path / "a")
+    for t in state.trials:
+        t["fired"] = ["t0", "t1", "t6"]
+    practice._after_trial(state)
+    assert state.done and practice.model.version == 1 and state.stop_reason.startswith("own success rate")
+    practice, state = _ended_practice(tmp_path / "b", floor_exam=0.0)
+    practice._after_trial(state)
+    assert state.done and practice.model.version == 1 and not state.floor_examined
+
+
+def test_with_no_room_left_for_another_revision_the_floor_is_examined_in_the_trials_that_remain(tmp_path):
+    practice, state = _ended_practice(tmp_path, target_rate=0.0, max_trials=11)
+    state.trials[5]["success"] = False
+    practice._after_trial(state)                 # three trials left: the last three that took the way back
+    assert state.watch["draws"] == [1, 3, 5] and state.watch["then_stop"] is None
+    _replay(practice, state, [True, True, True])
+    assert practice.model.version == 2 and not state.done     # kept (won two); the budget ends practice
 
 
 def test_the_net_takes_a_held_off_way_back_once_then_only_below_the_probe_floor(tmp_path):
