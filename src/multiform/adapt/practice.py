@@ -30,6 +30,9 @@ With ``learn`` (learning from practice, the paper's third form in full) the loop
   went on; a trial in which it would have is a probe, no evidence for repair. Where the probes
   favour it over the way back's own success rate when it fires again, its floor is lowered (a
   ``set_condition`` revision, watched like every other);
+* with ``floor_exam``, examines a deeper floor of its ways back once at its end (its target
+  reached, or no room left for another revision): the trials in which a way back fired are
+  replayed with it, and it is kept only if it wins (:meth:`Practice._examine_floors`);
 * gives the repair candidates it tried a new chance once new laws have passed their exam: they
   were judged with the old ones (:meth:`Practice._after_exam`);
 * watches every revision: if the robot's own success rate over the next ``revert_window`` plain
@@ -389,13 +392,14 @@ class Practice:
         return summary
 
     def _after_trial(self, state: PracticeState) -> None:
-        """After a trial: check a watched revision; stop on a success streak or the target rate,
-        repair on constant failure; refit the laws when due."""
+        """After a trial: check a watched revision; stop on a success streak or the target rate (after
+        the ways back's floor exam, if due); repair on constant failure; refit the laws when due;
+        examine the ways back's floor once no room is left for another revision."""
         cfg = self.config
         succ, _ = state.streak
         if cfg.learn:
             self._check_watch(state)
-        if state.done:                  # the exam practice ended with
+        if state.done:                  # the floor exam that ended practice
             return
         if succ >= cfg.success_streak:
             state.done, state.stop_reason = True, f"{succ} successes in a row"
@@ -513,9 +517,8 @@ class Practice:
     def _examine_floors(self, state: PracticeState, then_stop: str | None = None) -> bool:
         """At the end of practice (its target reached, or no room left for another revision), once:
         every way back whose floor lies above ``floor_exam`` gets that floor, and the trials of the net
-        as it is in which a way back fired are replayed with it. Kept only if it wins ``exam_margin``
-        more of them than it loses: a deeper floor lets the balance law go on with a catch the way
-        back would have ended, which from five demonstrations saved most pushed trials (job seeds 0
+        as it is in which a way back fired are replayed with it. A deeper floor lets the balance law go
+        on with a catch the way back would have ended, which from five demonstrations saved most pushed trials (job seeds 0
         and 2: 24 and 21 of 30 on the final model, 30 with the floor at -4) and from ten lost some
         (26 → 23). Only trials in which a way back fired can change: below its old floor the state
         never went. Kept if it won ``exam_margin`` more than it lost, or won some and lost none
