@@ -518,9 +518,9 @@ class Practice:
         """At the end of practice (its target reached, or no room left for another revision), once:
         every way back whose floor lies above ``floor_exam`` gets that floor, and the trials of the net
         as it is in which a way back fired are replayed with it. A deeper floor lets the balance law go
-        on with a catch the way back would have ended, which from five demonstrations saved most pushed trials (job seeds 0
-        and 2: 24 and 21 of 30 on the final model, 30 with the floor at -4) and from ten lost some
-        (26 → 23). Only trials in which a way back fired can change: below its old floor the state
+        on with a catch the way back would have ended, which from five demonstrations saved most
+        pushed trials (job seeds 0 and 2: 24 and 21 of 30 on the final model, 30 with the floor at -4)
+        and from ten lost some (26 → 23). Only trials in which a way back fired can change: below its old floor the state
         never went. Kept if it won ``exam_margin`` more than it lost, or won some and lost none
         (:meth:`_paired_verdict`). Returns whether the exam started (``then_stop``: practice stops
         after it)."""
@@ -541,10 +541,7 @@ class Practice:
                             f"{w.transition}'s floor at {cfg.floor_exam:.2f} instead of {w.floor:.2f}; kept only if "
                             f"it wins {cfg.exam_margin} more of them than it loses, or some and loses none",
                             {"replayed_trials": [t["trial"] for t in replay]})
-        state.watch = {"before_version": first, "version": self.model.version, "after_trial": state.trial - 1,
-                       "before": [bool(t["success"]) for t in replay],
-                       "draws": [int(t.get("draw", t["trial"])) for t in replay], "must_win": True,
-                       "then_stop": then_stop}
+        self._watch(state, first, self.model.version, replay, must_win=True, then_stop=then_stop)
         return True
 
     def _learn_from(self, state: PracticeState, k: int, trace: Trace, grade: Any, apn: APN,
@@ -727,14 +724,16 @@ class Practice:
         return cfg.target_rate > 0 and len(self._current_plain(state)) >= cfg.target_window \
             and self._plain_rate(state, cfg.target_window) >= cfg.target_rate
 
-    def _watch(self, state: PracticeState, before_version: int, version: int) -> None:
+    def _watch(self, state: PracticeState, before_version: int, version: int,
+               trials: list[dict[str, Any]] | None = None, **extra: Any) -> None:
         """Watch the revisions up to ``version``: compared over the next plain trials with the plain
-        trials before them."""
+        trials before them (``trials``: these instead of the last ``revert_window``); ``extra`` goes
+        into the watch (``must_win``, ``then_stop``: see :meth:`_examine_floors`)."""
         if not self.config.learn:
             return
-        last = self._plain(state)[-self.config.revert_window:]
+        last = self._plain(state)[-self.config.revert_window:] if trials is None else trials
         state.watch = {"before_version": before_version, "version": version, "after_trial": state.trial - 1,
-                       "before": [bool(t["success"]) for t in last]}
+                       "before": [bool(t["success"]) for t in last], **extra}
         if self.config.exam:
             state.watch["draws"] = [int(t.get("draw", t["trial"])) for t in last]
 
