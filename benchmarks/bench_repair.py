@@ -172,21 +172,21 @@ def run_one(base: Path, task_name: str, kind: Kind | None, strength: Any, seed: 
     sc = task.scenarios()[0]
     cfg = PracticeConfig(max_trials=max_trials, seed=seed, **sc.get("config", {}))
     state = Practice(model, folder / "practice", cfg, options=sc["options"], name=sc["name"]).run()
-    first_fail = next((t["trial"] for t in state.trials if not t["success"]), None)
-    revs = [r for r in state.revisions if r.get("version") is not None]
-    reverted = {r.get("reason", "").split(" did not help")[0] for r in revs if r["operator"] == "revert"}
+    first_fail = next((t.trial for t in state.trials if not t.success), None)
+    revs = [r for r in state.revisions if r.version is not None]
+    reverted = {r.reason.split(" did not help")[0] for r in revs if r.operator == "revert"}
     history = model.history.revisions()
     kept = _kept(history)
     streak = state.stop_reason.endswith("successes in a row")
     rec: dict[str, Any] = {
         "task": task_name, "kind": name, "strength": strength, "seed": seed,
         "what": kind.what if kind else "the sound skill", "cannot": kind.cannot if kind else "",
-        "practice_trials": len(state.trials), "failed_trials": sum(not t["success"] for t in state.trials),
+        "practice_trials": len(state.trials), "failed_trials": sum(not t.success for t in state.trials),
         "first_failure": first_fail, "reached_streak": streak, "stop_reason": state.stop_reason,
-        "revisions": [{"version": r["version"], "operator": r["operator"], "target": r["target"],
-                       "candidate": _candidate(history, r["version"]), "reason": r["reason"][:300]} for r in revs],
+        "revisions": [{"version": r.version, "operator": r.operator, "target": r.target,
+                       "candidate": _candidate(history, r.version), "reason": r.reason[:300]} for r in revs],
         "tried": list(state.tried), "reverted": sorted(reverted), "kept": kept,
-        "no_operator": sum(r["operator"] == "none" for r in state.revisions),
+        "no_operator": sum(r.operator == "none" for r in state.revisions),
         "net_version": model.version}
     if eval_trials > 0:
         specs = task.evaluation_specs(eval_trials, seed, 0.0)

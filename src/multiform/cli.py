@@ -388,18 +388,18 @@ def cmd_practice(args: argparse.Namespace) -> int:
     practice = Practice.for_scenario(model, folder, sc, args.max_trials, args.seed, observe=_views(args, folder / "view"))
 
     def show(state, trial):
-        mark = "ok  " if trial["success"] else "FAIL"
-        print(f"trial {trial['trial']:3d} v{trial['net_version']} {mark} {trial['outcome']:8s} "
-              f"judges {trial['judge_score']}  fired {' '.join(trial['fired'][:12])}"
-              + (" …" if len(trial["fired"]) > 12 else ""), flush=True)
-        if "mentor" in trial:
-            m = trial["mentor"]
-            print(f"  the mentor graded it: {m['agree']} of {m['stays']} stays as the robot did", flush=True)
-        if trial.get("takeover", {}).get("time") is not None:
-            print(f"  the mentor took over where the robot knew least, at {trial['takeover']['time']} s", flush=True)
-        if state.revisions and state.revisions[-1].get("after_trial") == trial["trial"]:
+        mark = "ok  " if trial.success else "FAIL"
+        print(f"trial {trial.trial:3d} v{trial.net_version} {mark} {trial.outcome:8s} "
+              f"judges {trial.judge_score}  fired {' '.join(trial.fired[:12])}"
+              + (" …" if len(trial.fired) > 12 else ""), flush=True)
+        if trial.mentor is not None:
+            print(f"  the mentor graded it: {trial.mentor.agree} of {trial.mentor.stays} stays as the robot did",
+                  flush=True)
+        if trial.takeover is not None and trial.takeover.time is not None:
+            print(f"  the mentor took over where the robot knew least, at {trial.takeover.time} s", flush=True)
+        if state.revisions and state.revisions[-1].after_trial == trial.trial:
             r = state.revisions[-1]
-            print(f"  revision {r['version']}: {r['operator']} {r['target']} — {r['reason']}", flush=True)
+            print(f"  revision {r.version}: {r.operator} {r.target} — {r.reason}", flush=True)
 
     state = practice.run(progress=show, stop_after=args.stop_after)
     print(f"{len(state.trials)} trials; {state.stop_reason or 'stopped'}")

@@ -164,14 +164,15 @@ class Job:
                 bar.update(practice.load_state().trial)
                 state = practice.run(progress=lambda st, tr: bar.update(1))
             used += len(state.trials)
-            revs = [r for r in state.revisions if r.get("operator") != "none"]
-            first_ok = next((t["trial"] for t in state.trials if t["success"]), None)
+            revs = [r for r in state.revisions if r.operator != "none"]
+            first_ok = next((t.trial for t in state.trials if t.success), None)
             results[sc["name"]] = {
                 "title": sc["title"], "trials": len(state.trials), "stop_reason": state.stop_reason,
-                "successes": sum(t["success"] for t in state.trials), "first_success_trial": first_ok,
-                "revisions": [{k: r[k] for k in ("version", "operator", "target", "reason", "after_trial")} for r in revs],
-                "outcomes": [t["outcome"] for t in state.trials], "state": str(folder / "state.json"),
-                "robot_seconds": round(sum(t["duration"] for t in state.trials), 1),
+                "successes": sum(t.success for t in state.trials), "first_success_trial": first_ok,
+                "revisions": [{"version": r.version, "operator": r.operator, "target": r.target, "reason": r.reason,
+                               "after_trial": r.after_trial} for r in revs],
+                "outcomes": [t.outcome for t in state.trials], "state": str(folder / "state.json"),
+                "robot_seconds": round(sum(t.duration for t in state.trials), 1),
                 **(_learning_summary(state) if cfg.learn else {})}
             self.log(f"  {sc['name']}: {len(state.trials)} trials, revisions: "
                      + (", ".join(f"{r['operator']} {r['target']}" for r in revs) or "none")
@@ -304,16 +305,16 @@ class Job:
 def _learning_summary(state: Any) -> dict[str, Any]:
     """What a scenario that learned from practice did: own segments, the mentor's grades and how
     often they agreed with the robot's, plain (not exploring) trials' success, seconds of robot time."""
-    plain = [t for t in state.trials if not t.get("explored")]
+    plain = state.plain()
     graded = state.mentor_graded
-    stays = sum(g["stays"] for g in graded)
-    return {"own_segments": sum(t.get("own_segments", 0) for t in state.trials),
-            "mentor_labelled_trials": len({g["trial"] for g in graded} | {t["trial"] for t in state.takeovers}),
+    stays = sum(g.stays for g in graded)
+    return {"own_segments": sum(t.own_segments for t in state.trials),
+            "mentor_labelled_trials": len({g.trial for g in graded} | {t.trial for t in state.takeovers}),
             "mentor_takeovers": len(state.takeovers),
-            "mentor_agreement": {"stays": stays, "agree": sum(g["agree"] for g in graded),
-                                 "rate": round(sum(g["agree"] for g in graded) / stays, 4) if stays else None},
-            "plain_trials": len(plain), "plain_successes": sum(t["success"] for t in plain),
-            "curve": [[t["trial"], bool(t["success"]), bool(t.get("explored"))] for t in state.trials]}
+            "mentor_agreement": {"stays": stays, "agree": sum(g.agree for g in graded),
+                                 "rate": round(sum(g.agree for g in graded) / stays, 4) if stays else None},
+            "plain_trials": len(plain), "plain_successes": sum(t.success for t in plain),
+            "curve": [[t.trial, bool(t.success), bool(t.explored)] for t in state.trials]}
 
 
 def train_model(model: SkillModel, seed: int = 0, log: Log = print,

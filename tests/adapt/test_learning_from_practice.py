@@ -10,7 +10,7 @@ import pytest
 
 from multiform.adapt.experience import Experience, select_segments
 from multiform.adapt.explore import ExploringLaw
-from multiform.adapt.practice import Practice, PracticeConfig, PracticeState
+from multiform.adapt.practice import Practice, PracticeConfig, PracticeState, RevisionRecord, TrialRecord, Watch
 from multiform.demos.episode import Episode, SegmentLabel
 from multiform.demos.pendulum_mentor import PendulumMentor
 from multiform.errors import InvalidInput
@@ -105,8 +105,8 @@ def test_a_refit_reports_mentor_and_own_samples_apart_with_error_before_and_afte
 def test_a_skill_at_its_target_is_not_refitted(tmp_path):
     model = _model(tmp_path)
     practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, target_rate=0.9), name="c")
-    state = PracticeState(trial=10, trials=[{"trial": i, "success": True} for i in range(10)])
-    practice._refit(state)
+    state = PracticeState(trial=10, trials=[TrialRecord(trial=i, success=True) for i in range(10)])
+    practice.learning.refit(state)
     assert model.version == 0 and state.last_refit_trial == 9
 
 
@@ -116,13 +116,13 @@ def test_only_a_skill_that_clearly_falls_short_of_its_target_is_refitted(tmp_pat
     # one failure in 18 is what a 95 % skill shows now and then; four in ten it is not
     model = _model(tmp_path)
     practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, target_rate=0.95), name="c")
-    trials = [{"trial": i, "success": ok, "net_version": 0} for i, ok in enumerate(outcomes)]
-    trials += [{"trial": len(trials), "success": False, "net_version": 0, "explored": True},
-               {"trial": len(trials) + 1, "success": False, "net_version": -1}]    # not plain, another net
+    trials = [TrialRecord(trial=i, success=ok, net_version=0) for i, ok in enumerate(outcomes)]
+    trials += [TrialRecord(trial=len(trials), success=False, net_version=0, explored=True),
+               TrialRecord(trial=len(trials) + 1, success=False, net_version=-1)]    # not plain, another net
     state = PracticeState(trial=len(trials), trials=trials)
-    assert practice._falls_short(state) is short
+    assert practice.learning.falls_short(state) is short
     if not short:
-        practice._refit(state)
+        practice.learning.refit(state)
         assert model.version == 0 and state.last_refit_trial == len(trials) - 1
 
 
@@ -134,8 +134,8 @@ def test_a_shortfall_needs_enough_plain_trials_of_the_net_as_it_is_now(tmp_path)
     def short(outcomes, after):
         practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, target_rate=0.98,
                                                                   shortfall_after=after), name="c")
-        trials = [{"trial": i, "success": ok, "net_version": 0} for i, ok in enumerate(outcomes)]
-        return practice._falls_short(PracticeState(trial=len(trials), trials=trials))
+        trials = [TrialRecord(trial=i, success=ok, net_version=0) for i, ok in enumerate(outcomes)]
+        return practice.learning.falls_short(PracticeState(trial=len(trials), trials=trials))
 
     few, many = [True] * 4 + [False], [True] * 9 + [False] + [True] * 9 + [False]
     assert short(few, 0) and not short(few, 20)
@@ -171,10 +171,10 @@ def test_a_refit_is_replayed_from_the_history(tmp_path):
 
 
 def _state(before: list[bool], after: list[bool], watch_version: int) -> PracticeState:
-    trials = [{"trial": i, "success": ok} for i, ok in enumerate(before + after)]
+    trials = [TrialRecord(trial=i, success=ok) for i, ok in enumerate(before + after)]
     return PracticeState(trial=len(trials), trials=trials,
-                         watch={"before_version": watch_version - 1, "version": watch_version,
-                                "after_trial": len(before) - 1, "before": before})
+                         watch=Watch(before_version=watch_version - 1, version=watch_version,
+                                     after_trial=len(before) - 1, before=before))
 
 
 @pytest.mark.parametrize("after, reverted", [([True] * 2 + [False] * 8, True), ([True] * 7 + [False] * 3, False)])
@@ -184,12 +184,12 @@ def test_a_revision_that_made_things_clearly_worse_is_reverted(tmp_path, after, 
     model.history.record(rev)
     practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, revert_window=10), name="c")
     state = _state([True] * 9 + [False], after, watch_version=1)
-    practice._check_watch(state)
+    practice.watch.check(state)
     assert state.watch is None
     if reverted:
         assert model.version == 2 and model.history.revisions()[-1].operator == "revert"
         assert model.apn == model.history.version(0) and model.apn.laws["swing_up"].fit_name == "swing_up"
-        assert state.revisions[-1]["operator"] == "revert" and "9/10 to 2/10" in state.revisions[-1]["reason"]
+        assert state.revisions[-1].operator == "revert" and "9/10 to 2/10" in state.revisions[-1].reason
     else:
         assert model.version == 1 and model.apn.laws["swing_up"].fit_name == "swing_up_r1"
 
@@ -230,10 +230,11 @@ def test_the_mentor_labels_only_the_stays_the_judges_graded(tmp_path, monkeypatc
         return [SegmentLabel(s, e, p, True, "mentor") for s, e, p in placed.segments() if p in ("P1", "P2")]
     assert len(mentor(place_episode(apn, trace.to_episode()), apn)) == 4           # it would label all four
     practice = Practice(model, tmp_path / "practice", PracticeConfig(learn=True), name="c", mentor=mentor)
-    verdicts, account = practice._mentor_grades("c_3", trace, grade, apn)
+    verdicts, account = practice.learning.mentor_grades(3, trace, grade, apn)
     assert sorted(verdicts) == [(0, 100), (105, 250)]
     assert sorted((r.start, r.end) for r in model.labels) == [(0, 100), (105, 250)]
-    assert account["stays"] == account["agree"] == 2 and revised == [["P1", "P2"]]
+    assert {r.source for r in model.labels} == {"c_3"}
+    assert account.stays == account.agree == 2 and revised == [["P1", "P2"]]
 
 
 def test_exploration_is_seeded_smooth_and_of_the_asked_size():
@@ -261,7 +262,7 @@ def test_a_scenario_adopts_only_its_own_revisions_after_a_kill(tmp_path):
     _, rev = refit_law(model.apn, "swing_up", "swing_up_r1", "own data", {"scenario": "c"})
     model.history.record(rev)
     assert Practice(model, folder, name="a").load_state().revisions == []
-    assert [r["version"] for r in Practice(model, folder, name="c").load_state().revisions] == [1]
+    assert [r.version for r in Practice(model, folder, name="c").load_state().revisions] == [1]
 
 
 def test_a_law_learned_with_mirror_images_is_symmetric():
@@ -284,22 +285,22 @@ def test_a_law_learned_with_mirror_images_is_symmetric():
 def test_the_target_counts_only_trials_of_the_net_as_it_is_now(tmp_path):
     model = _model(tmp_path)
     practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, target_rate=0.9, target_window=4), name="c")
-    trials = [{"trial": i, "success": True, "net_version": 0} for i in range(6)]
-    assert practice._reached_target(PracticeState(trial=6, trials=trials))
+    trials = [TrialRecord(trial=i, success=True, net_version=0) for i in range(6)]
+    assert practice.reached_target(PracticeState(trial=6, trials=trials))
     _, rev = refit_law(model.apn, "swing_up", "swing_up_r1", "own data")
     model.history.record(rev)
-    later = trials + [{"trial": 6 + i, "success": True, "net_version": 1} for i in range(3)]
-    assert not practice._reached_target(PracticeState(trial=9, trials=later))
-    assert practice._reached_target(PracticeState(trial=10, trials=later + [{"trial": 9, "success": True,
-                                                                              "net_version": 1}]))
+    later = trials + [TrialRecord(trial=6 + i, success=True, net_version=1) for i in range(3)]
+    assert not practice.reached_target(PracticeState(trial=9, trials=later))
+    assert practice.reached_target(PracticeState(trial=10, trials=later + [TrialRecord(trial=9, success=True,
+                                                                                        net_version=1)]))
 
 
 def _exam_state(before: list[bool], after: list[bool], draws: list[int]) -> PracticeState:
-    trials = [{"trial": i, "success": ok} for i, ok in enumerate(before)]
-    trials += [{"trial": len(before) + i, "success": ok, "draw": d} for i, (ok, d) in enumerate(zip(after, draws))]
+    trials = [TrialRecord(trial=i, success=ok) for i, ok in enumerate(before)]
+    trials += [TrialRecord(trial=len(before) + i, success=ok, draw=d) for i, (ok, d) in enumerate(zip(after, draws))]
     return PracticeState(trial=len(trials), trials=trials,
-                         watch={"before_version": 0, "version": 1, "after_trial": len(before) - 1,
-                                "before": before, "draws": draws})
+                         watch=Watch(before_version=0, version=1, after_trial=len(before) - 1, before=before,
+                                     draws=draws))
 
 
 @pytest.mark.parametrize("after, reverted", [
@@ -314,7 +315,7 @@ def test_an_examined_revision_is_judged_on_the_same_trials_replayed(tmp_path, af
     practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, revert_window=10, exam=True), name="c")
     before = [True] * 9 + [False]
     state = _exam_state(before, after, draws=list(range(10)))
-    practice._check_watch(state)
+    practice.watch.check(state)
     assert state.watch is None and state.last_refit_trial == state.trial - 1
     if reverted:
         assert model.version == 2 and model.apn.laws["swing_up"].fit_name == "swing_up"
@@ -336,8 +337,8 @@ def test_repair_candidates_get_a_new_chance_after_new_laws_pass_their_exam(tmp_p
     practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, revert_window=10, exam=True), name="c")
     state = _exam_state([True] * 9 + [False], after, draws=list(range(10)))
     state.tried = ["back:P2>P1"]
-    state.revisions = [{"version": 1, "operator": operator, "target": "swing_up", "after_trial": 9}]
-    practice._check_watch(state)
+    state.revisions = [RevisionRecord(version=1, operator=operator, target="swing_up", after_trial=9)]
+    practice.watch.check(state)
     assert state.tried == ([] if retried else ["back:P2>P1"])
 
 
@@ -346,18 +347,18 @@ def test_the_exam_replays_the_draws_of_the_plain_trials_before_the_revision(tmp_
     cfg = PracticeConfig(learn=True, revert_window=3, exam=True, explore=0.5, explore_every=2)
     practice = Practice(model, tmp_path / "p", cfg, name="c")
     # trials 0..5, the odd ones explored; the last three plain ones are 0, 2, 4 (trial 4 itself a replay of 1)
-    trials = [{"trial": i, "success": True, "explored": i % 2 == 1} for i in range(6)]
-    trials[4]["draw"] = 1
+    trials = [TrialRecord(trial=i, success=True, explored=i % 2 == 1) for i in range(6)]
+    trials[4].draw = 1
     state = PracticeState(trial=6, trials=trials)
-    practice._watch(state, 0, 1)
-    assert state.watch["draws"] == [0, 2, 1]
-    assert [practice._exam_draw(PracticeState(trial=6 + i, trials=trials, watch=state.watch)) for i in range(4)] \
-        == [0, 2, 1, None]
+    practice.watch.start(state, 0, 1)
+    assert state.watch.draws == [0, 2, 1]
+    assert [practice.watch.exam_draw(PracticeState(trial=6 + i, trials=trials, watch=state.watch))
+            for i in range(4)] == [0, 2, 1, None]
     # without an exam nothing is replayed
     plain = Practice(model, tmp_path / "q", PracticeConfig(learn=True), name="c")
     fresh = PracticeState(trial=6, trials=trials)
-    plain._watch(fresh, 0, 1)
-    assert "draws" not in fresh.watch and plain._exam_draw(fresh) is None
+    plain.watch.start(fresh, 0, 1)
+    assert fresh.watch.draws is None and plain.watch.exam_draw(fresh) is None
 
 
 def test_own_samples_join_only_where_the_mentors_law_is_unsure():
@@ -379,12 +380,12 @@ def test_no_repair_is_made_with_too_few_trials_left_to_check_it(tmp_path):
     model = _model(tmp_path)
     practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, max_trials=20, revert_window=10,
                                                               exam=True), name="c")
-    state = PracticeState(trial=12, trials=[{"trial": i, "success": False} for i in range(12)],
+    state = PracticeState(trial=12, trials=[TrialRecord(trial=i, success=False) for i in range(12)],
                           failed_since_repair=list(range(12)))
-    practice._repair(state)
+    practice.repairs.repair(state)
     (none,) = state.revisions
-    assert none["operator"] == "none" and "8 trials are left, fewer than the 10" in none["reason"]
+    assert none.operator == "none" and "8 trials are left, fewer than the 10" in none.reason
     assert model.version == 0 and state.failed_since_repair == [] and state.trying is None
     early = PracticeState(trial=5, trials=state.trials[:5], failed_since_repair=list(range(5)))
-    practice._repair(early)                                       # room left: the repair loop runs as ever
-    assert "trials are left" not in early.revisions[-1]["reason"]
+    practice.repairs.repair(early)                                # room left: the repair loop runs as ever
+    assert "trials are left" not in early.revisions[-1].reason

@@ -7,12 +7,13 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
 import multiform
-from multiform.adapt.practice import Practice, PracticeConfig
+from multiform.adapt.practice import Practice, PracticeConfig, state_from_json
 
 
 @pytest.fixture(scope="module")
@@ -35,18 +36,18 @@ def test_constant_failure_is_repaired_and_the_repair_then_succeeds(trained, tmp_
     model = tmp_path / "model"
     shutil.copytree(model_dir, model)
     state = _practice(task, model, tmp_path / "p").run()
-    outcomes = [t["success"] for t in state.trials]
+    outcomes = [t.success for t in state.trials]
     # the mentor's t1 never holds: three failures in a row, then the repair ...
     assert outcomes[:3] == [False] * 3
     repair = state.revisions[0]
-    assert (repair["operator"], repair["target"], repair["after_trial"]) == ("set_condition", "t1", 2)
+    assert (repair.operator, repair.target, repair.after_trial) == ("set_condition", "t1", 2)
     # ... after which the robot succeeds on every trial, with the revised net
     after = state.trials[3:]
-    assert after and all(t["success"] and t["net_version"] == repair["version"] for t in after)
+    assert after and all(t.success and t.net_version == repair.version for t in after)
     assert state.done and "successes in a row" in state.stop_reason
     # the failed trials are kept for the diagnosis, the state on disk is the state returned
     assert sorted(p.name for p in (tmp_path / "p" / "traces").iterdir()) == [f"trial_000{k}.npz" for k in range(3)]
-    assert json.loads((tmp_path / "p" / "state.json").read_text())["trials"] == state.trials
+    assert state_from_json(json.loads((tmp_path / "p" / "state.json").read_text()), "state.json") == state
 
 
 def test_a_loop_stopped_midway_resumes_to_where_an_uninterrupted_one_ends(trained, tmp_path):
@@ -61,6 +62,6 @@ def test_a_loop_stopped_midway_resumes_to_where_an_uninterrupted_one_ends(traine
             assert len(first.trials) == stop and not first.done
         state = _practice(task, model, folder).run()
         history = (model / "skill.history.jsonl").read_text().splitlines()
-        ends.append(([{k: v for k, v in t.items() if k not in ("wall", "time")} for t in state.trials],
+        ends.append(([replace(t, wall=0.0, time="") for t in state.trials],
                      [(json.loads(r)["operator"], json.loads(r)["target"], json.loads(r)["version"]) for r in history]))
     assert ends[0] == ends[1] == ends[2]

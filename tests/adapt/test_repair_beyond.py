@@ -13,7 +13,7 @@ import yaml
 from multiform.adapt.compare import compare_with_mentor
 from multiform.adapt.diagnosis import diagnose
 from multiform.adapt.mentor import ConditionFit, MentorEvidence, mentor_evidence
-from multiform.adapt.practice import Practice, PracticeConfig, PracticeState
+from multiform.adapt.practice import Practice, PracticeConfig, PracticeState, RevisionRecord, TrialRecord, Trying
 from multiform.adapt.repair import candidates, repair
 from multiform.demos.episode import Episode, SegmentLabel
 from multiform.model import SkillModel
@@ -195,8 +195,8 @@ def test_trials_that_ended_outside_the_net_are_no_evidence():
     d = diagnose(apn, tr, mentor=mentor)
     assert d.trials == 0 and d.failures == 0 and d.findings == []
     assert candidates(apn, d, FakeLearners(mentor)) == []
-    state = PracticeState(trials=[{"trial": 0, "success": True}, {"trial": 1, "success": False, "evidence": False},
-                                  {"trial": 2, "success": True}])
+    state = PracticeState(trials=[TrialRecord(trial=0, success=True), TrialRecord(trial=1, success=False, evidence=False),
+                                  TrialRecord(trial=2, success=True)])
     assert state.streak == (2, 0)
 
 
@@ -220,7 +220,7 @@ def _practice(tmp_path, helped: bool):
     apn = model.apn
     mentor = mentor_evidence(apn, EPISODES)
     practice = Practice(model, tmp_path / "p", PracticeConfig(), name="a")
-    practice.learners = FakeLearners(mentor)
+    practice.ctx.learners = FakeLearners(mentor)
     # an earlier candidate (a limit move on t5) is on trial since trial 2
     new, rev = set_condition(apn, "t5", "abs(theta) > 0.9 or fires_t3 >= 10", "test", {"candidate": "limit_too_tight:t5"})
     model.history.record(rev)
@@ -230,32 +230,32 @@ def _practice(tmp_path, helped: bool):
         fir = [(0, "t0"), (40, "t1"), (90, "t6")] if ok else [(0, "t0"), (40, "t8"), (90, "t5")]
         tr = make_trace(apn, fir, vals(100, 1.0), "success" if ok else "failure")
         if not ok:
-            tr.save(practice._trace_path(k))
-        trials.append({"trial": k, "success": ok, "fired": tr.fired()})
-    state = PracticeState(trial=6, trials=trials, failed_since_repair=[k for k in (3, 4, 5) if not trials[k]["success"]],
+            tr.save(practice.trace_path(k))
+        trials.append(TrialRecord(trial=k, success=ok, fired=tr.fired()))
+    state = PracticeState(trial=6, trials=trials, failed_since_repair=[k for k in (3, 4, 5) if not trials[k].success],
                           tried=["limit_too_tight:t5"],
-                          revisions=[{"version": 1, "operator": "set_condition", "target": "t5", "after_trial": 2}],
-                          trying={"key": "limit_too_tight:t5", "before_version": 0, "version": 1, "after_trial": 2,
-                                  "visited": ["P0", "P1", "P2"], "failed": [0, 1, 2]})
+                          revisions=[RevisionRecord(version=1, operator="set_condition", target="t5", after_trial=2)],
+                          trying=Trying(key="limit_too_tight:t5", before_version=0, version=1, after_trial=2,
+                                        visited=["P0", "P1", "P2"], failed=[0, 1, 2]))
     return model, practice, state
 
 
 def test_a_repair_that_did_not_help_is_reverted_and_the_next_candidate_tried(tmp_path):
     model, practice, state = _practice(tmp_path, helped=False)
-    practice._repair(state)
+    practice.repairs.repair(state)
     ops = [(r.operator, r.target) for r in model.history.revisions()]
     assert ops == [("set_condition", "t5"), ("revert", "version 0"), ("set_lambda", "t8")]
     assert "limit_too_tight:t5 did not help" in model.history.revisions()[1].reason
     net = model.apn
     assert str(net.transition("t5").condition) == "abs(theta) > 0.8 or fires_t3 >= 10"    # back as written
     assert net.transition("t8").lam == 0.0
-    assert state.tried == ["limit_too_tight:t5", "dead_branch:t8"] and state.trying["key"] == "dead_branch:t8"
-    assert state.trying["before_version"] == 2 and state.trying["version"] == 3
+    assert state.tried == ["limit_too_tight:t5", "dead_branch:t8"] and state.trying.key == "dead_branch:t8"
+    assert state.trying.before_version == 2 and state.trying.version == 3
 
 
 def test_a_repair_that_helped_stays_and_the_next_one_builds_on_it(tmp_path):
     model, practice, state = _practice(tmp_path, helped=True)
-    practice._repair(state)
+    practice.repairs.repair(state)
     ops = [r.operator for r in model.history.revisions()]
     assert ops == ["set_condition", "set_lambda"]
     assert str(model.apn.transition("t5").condition) == "abs(theta) > 0.9 or fires_t3 >= 10"
@@ -264,9 +264,9 @@ def test_a_repair_that_helped_stays_and_the_next_one_builds_on_it(tmp_path):
 def test_a_candidate_is_never_tried_twice(tmp_path):
     model, practice, state = _practice(tmp_path, helped=False)
     state.tried.append("dead_branch:t8")
-    practice._repair(state)
+    practice.repairs.repair(state)
     assert [r.operator for r in model.history.revisions()] == ["set_condition", "revert"]
-    assert state.revisions[-1]["operator"] == "none" and "dead_branch:t8" in state.revisions[-1]["reason"]
+    assert state.revisions[-1].operator == "none" and "dead_branch:t8" in state.revisions[-1].reason
 
 
 def test_a_stop_with_no_weight_is_starved_though_the_mentor_never_tagged_it():
@@ -299,8 +299,8 @@ def test_a_clock_limit_is_read_as_the_net_saw_it_before_firing():
 
 
 def test_which_lambdas_are_exhausted_is_read_off_the_revisions():
-    def rev(operator: str, target: str) -> dict:
-        return {"version": 1, "operator": operator, "target": target, "after_trial": 0}
+    def rev(operator: str, target: str) -> RevisionRecord:
+        return RevisionRecord(version=1, operator=operator, target=target, after_trial=0)
     state = PracticeState(revisions=[rev("set_lambda", "t3"), rev("refit_law", "balance"), rev("set_lambda", "t4")])
     assert state.lambda_exhausted == []                        # each lowered once
     state.revisions.append(rev("set_lambda", "t3"))
@@ -315,7 +315,7 @@ def test_which_lambdas_are_exhausted_is_read_off_the_revisions():
 
 def test_a_practice_state_saved_with_lambda_exhausted_still_loads(tmp_path):
     model, practice, state = _practice(tmp_path, helped=False)
-    practice._repair(state)                                    # a revert, then λ(t8) set to 0
+    practice.repairs.repair(state)                                    # a revert, then λ(t8) set to 0
     practice.save_state(state)
     data = json.loads(practice.state_path.read_text())
     assert "lambda_exhausted" not in data

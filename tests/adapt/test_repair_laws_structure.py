@@ -10,7 +10,7 @@ import yaml
 
 from multiform.adapt.diagnosis import diagnose
 from multiform.adapt.mentor import law_errors, mentor_evidence
-from multiform.adapt.practice import Practice, PracticeConfig, PracticeState
+from multiform.adapt.practice import Practice, PracticeConfig, PracticeState, TrialRecord
 from multiform.adapt.repair import candidates, repair
 from multiform.demos.episode import Episode, SegmentLabel
 from multiform.learn.gp import GPLaw
@@ -177,26 +177,26 @@ def test_a_law_change_that_did_not_help_is_reverted_and_the_next_candidate_tried
     apn = model.apn
     mentor = _evidence(apn, laws)
     practice = Practice(model, tmp_path / "p", PracticeConfig(), name="a")
-    practice.learners = FakeLearners(mentor)
+    practice.ctx.learners = FakeLearners(mentor)
     fell = [(0, "t0"), (40, "t1"), (290, "t5")]
     trials = []
     for k in range(3):
         tr = make_trace(apn, fell, vals(300, 0.02), "failure")
-        tr.save(practice._trace_path(k))
-        trials.append({"trial": k, "success": False, "fired": tr.fired()})
+        tr.save(practice.trace_path(k))
+        trials.append(TrialRecord(trial=k, success=False, fired=tr.fired()))
     # the condition candidates before it (least change first) were tried already
     keys = [c.key for c in candidates(apn, diagnose(apn, [make_trace(apn, fell, vals(300, 0.02), "failure")] * 3,
-                                                    mentor=mentor), practice.learners)]
+                                                    mentor=mentor), practice.ctx.learners)]
     earlier = keys[:keys.index("wrong_law:t1>balance")]
     state = PracticeState(trial=3, trials=trials, failed_since_repair=[0, 1, 2], tried=list(earlier))
-    practice._repair(state)
-    assert state.trying["key"] == "wrong_law:t1>balance" and model.apn.transition("t1").law == "balance"
+    practice.repairs.repair(state)
+    assert state.trying.key == "wrong_law:t1>balance" and model.apn.transition("t1").law == "balance"
     for k in range(3, 6):                         # it did not help: the same falls
         tr = make_trace(model.apn, fell, vals(300, 0.02), "failure")
-        tr.save(practice._trace_path(k))
-        trials.append({"trial": k, "success": False, "fired": tr.fired()})
+        tr.save(practice.trace_path(k))
+        trials.append(TrialRecord(trial=k, success=False, fired=tr.fired()))
     state.trial, state.failed_since_repair = 6, [3, 4, 5]
-    practice._repair(state)
+    practice.repairs.repair(state)
     ops = [(r.operator, r.target) for r in model.history.revisions()]
     assert ops[0] == ("set_law", "t1") and ops[1] == ("revert", "version 0") and ops[2][0] == "add_transition"
     assert "wrong_law:t1>balance did not help" in model.history.revisions()[1].reason

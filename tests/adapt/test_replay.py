@@ -89,25 +89,26 @@ def _model(tmp_path, **conditions) -> SkillModel:
 def test_practice_moves_such_a_limit_before_its_first_trial_once(tmp_path):
     model = _model(tmp_path, t4="fires_t2 >= 1")
     practice = Practice(model, tmp_path / "p", PracticeConfig(), name="a")
-    practice.learners = FakeLearners(mentor_evidence(model.apn, EPISODES))
+    practice.ctx.learners = FakeLearners(mentor_evidence(model.apn, EPISODES))
     state = PracticeState()
-    practice._check_definition(state)
+    practice.repairs.check_definition(state)
+    practice.save_state(state)
     (rev,) = model.history.revisions()
     assert (rev.operator, rev.target, str(model.apn.transition("t4").condition)) == \
         ("set_condition", "t4", "fires_t2 >= 2")
     assert rev.evidence["candidate"] == "demonstrations:t4" and rev.evidence["source"] == "demonstrations"
-    assert state.checked and state.revisions[0]["after_trial"] == -1 and state.tried == []
+    assert state.checked and state.revisions[0].after_trial == -1 and state.tried == []
     saved = practice.load_state()
     assert saved.checked and saved.revisions == state.revisions
     # checking again (a resumed loop) finds the moved limit sound
-    practice.learners = FakeLearners(mentor_evidence(model.apn, EPISODES))
-    practice._check_definition(PracticeState())
+    practice.ctx.learners = FakeLearners(mentor_evidence(model.apn, EPISODES))
+    practice.repairs.check_definition(PracticeState())
     assert len(model.history.revisions()) == 1
 
 
 def test_practice_leaves_a_sound_definition_as_written(tmp_path):
     model = _model(tmp_path)
     practice = Practice(model, tmp_path / "p", PracticeConfig(), name="a")
-    practice.learners = FakeLearners(mentor_evidence(model.apn, EPISODES))
-    practice._check_definition(state := PracticeState())
+    practice.ctx.learners = FakeLearners(mentor_evidence(model.apn, EPISODES))
+    practice.repairs.check_definition(state := PracticeState())
     assert model.history.revisions() == [] and state.checked and np.isfinite(model.version)

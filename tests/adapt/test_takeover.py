@@ -33,7 +33,7 @@ def test_the_mentor_takes_over_where_the_running_law_was_least_sure():
 
 
 def test_a_failed_trial_gets_one_takeover_within_the_budget_kept_apart_with_its_source(tmp_path):
-    from multiform.adapt.practice import Practice, PracticeConfig, PracticeState
+    from multiform.adapt.practice import Practice, PracticeConfig, PracticeState, TrialRecord
     from multiform.adapt.experience import Experience
     from multiform.demos.episode import Episode, SegmentLabel
     from multiform.learn.judge import TrialGrade
@@ -60,11 +60,14 @@ def test_a_failed_trial_gets_one_takeover_within_the_budget_kept_apart_with_its_
     trace = make_trace(model.apn, [(0, "t0")], v, "failure")
     failed = TrialGrade(segments=[], places={}, score=0.1)
     state = PracticeState()
-    out = practice._learn_from(state, 3, trace, failed, model.apn, success=False)
-    assert out["takeover"]["tick"] == asked[0] and 100 <= asked[0] < 300
-    assert [t["trial"] for t in state.takeovers] == [3]
+    record = TrialRecord(trial=3, success=False)
+    practice.learning.learn_from(state, record, trace, failed, model.apn)
+    assert record.takeover.tick == asked[0] and 100 <= asked[0] < 300
+    assert [t.trial for t in state.takeovers] == [3]
     kept = Experience(model.path).takeovers()
     assert list(kept) == ["c_3"] and kept["c_3"].num_samples == 300 and kept["c_3"].labels[0].success
     # the budget is spent: the next failed trial is not taken over; a successful one never is
-    assert "takeover" not in practice._learn_from(state, 4, trace, failed, model.apn, success=False)
+    later = TrialRecord(trial=4, success=False)
+    practice.learning.learn_from(state, later, trace, failed, model.apn)
+    assert later.takeover is None
     assert len(asked) == 1

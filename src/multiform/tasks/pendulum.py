@@ -128,9 +128,6 @@ MENTOR_BUDGET = 10                 # and at most this many
 TAKEOVER_BUDGET = 10               # failed trials the mentor takes over: with its grades at most 20 trials of its
                                    # time (job seed 2, 10 demos: 71.0 % without takeovers, 92.5 % with; 98.0 % since
                                    # the judges pass over stays of a few milliseconds)
-HOLD_OFF_EVERY = 0                 # off: with every pushed exploring trial taking its way back once and then holding
-                                   # it off (adapt.hold_off, 1) job seed 2 from 10 demos fell from 98.0 to 91.5 %;
-                                   # see docs/measurements.md
 FLOOR_EXAM = -4.0                  # at the end of practice the ways back's floor is examined at this logit (a state
                                    # σ(-4) ≈ 1/50 as likely to be balanced as at the region's boundary) on the trials
                                    # in which a way back fired, and kept only if it wins (adapt.practice)
@@ -178,7 +175,7 @@ def scenarios() -> list[dict[str, Any]]:
                     "explore_every": 2, "refit_every": 10, "mentor_every": MENTOR_EVERY,
                     "mentor_budget": MENTOR_BUDGET, "target_rate": TARGET_SUCCESS_RATE, "target_window": 20,
                     "revert_window": 10, "exam": True, "novelty": OWN_NOVELTY, "takeover_budget": TAKEOVER_BUDGET,
-                    "hold_off_every": HOLD_OFF_EVERY, "floor_exam": FLOOR_EXAM}, "seed": 2},
+                    "floor_exam": FLOOR_EXAM}, "seed": 2},
     ]
 
 

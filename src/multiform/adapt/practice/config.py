@@ -1,0 +1,83 @@
+"""What practice does and when it stops: :class:`PracticeConfig`."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ...errors import InvalidInput
+from ..experience import DEFAULT_MARGIN
+
+REVERT_P = 0.1          # one-sided p below which a drop in the robot's own success rate reverts a revision
+EXAM_MARGIN = 2         # replayed trials a revision may lose more than it wins (one is what chaos in a swing-up gives)
+EXPLORE_TAU = 0.1       # s: how smooth an exploring law's deviation is (:class:`~multiform.adapt.explore.ExploringLaw`)
+
+
+@dataclass
+class PracticeConfig:
+    """When practice counts as constant failure, what it learns, and when it is done.
+
+    Constant failure: ``failures_in_a_row`` failed trials in a row, or (if ``window`` > 0) at least
+    ``failure_rate`` of the last ``window`` trials since the last repair. Done: ``success_streak``
+    successes in a row, the target rate (``target_rate`` over ``target_window`` plain trials), or
+    ``max_trials`` trials. The learning options are described in :mod:`multiform.adapt.practice`.
+    """
+
+    failures_in_a_row: int = 3
+    window: int = 0
+    failure_rate: float = 0.8
+    success_streak: int = 5
+    max_trials: int = 40
+    seed: int = 0
+    learn: bool = False
+    margin: float = DEFAULT_MARGIN
+    explore: float = 0.0
+    explore_every: int = 2
+    refit_every: int = 10
+    refit_min_segments: int = 5
+    mentor_every: int = 0
+    mentor_budget: int = 0
+    target_rate: float = 0.0
+    target_window: int = 20
+    shortfall_after: int = 0
+    revert_window: int = 10
+    exam: bool = False
+    novelty: float = 0.0
+    takeover_budget: int = 0
+    floor_exam: float = 0.0
+    check_demonstrations: bool = True
+
+    def __post_init__(self) -> None:
+        counts = {"failures_in_a_row": 1, "window": 0, "success_streak": 1, "max_trials": 1, "seed": 0,
+                  "explore_every": 0, "refit_every": 1, "refit_min_segments": 1, "mentor_every": 0,
+                  "mentor_budget": 0, "takeover_budget": 0, "target_window": 1, "shortfall_after": 0,
+                  "revert_window": 1}
+        for name, low in counts.items():
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= 1_000_000:
+                raise InvalidInput(f"must be a whole number in {low}..1000000, got {v!r}", element=name)
+        v = self.floor_exam
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not -1e6 <= v <= 0.0:
+            raise InvalidInput(f"must be a logit in -1000000..0, got {v!r}", element="floor_exam")
+        for name in ("failure_rate", "margin", "target_rate", "explore", "novelty"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v)
+                                           and 0.0 <= v <= (10.0 if name == "explore" else 1.0)):
+                raise InvalidInput(f"out of range: {v!r}", element=name)
+        for name in ("learn", "exam", "check_demonstrations"):
+            if not isinstance(getattr(self, name), bool):
+                raise InvalidInput(f"must be true or false, got {getattr(self, name)!r}", element=name)
+
+    def explores(self, k: int) -> bool:
+        """Trial ``k`` explores (every ``explore_every``-th trial, when exploring at all)."""
+        return self.explore > 0 and self.explore_every > 0 and k % self.explore_every == self.explore_every - 1
+
+    def trial_seed(self, k: int) -> int:
+        """The seed of draw ``k`` (a function of the index: a resumed loop sees the same trials)."""
+        return 1_000_003 * (self.seed + 1) + k
+
+    def watch_trials(self) -> int:
+        """Trials it takes to see ``revert_window`` plain ones after a revision."""
+        if self.exam:
+            return self.revert_window
+        return self.revert_window * (self.explore_every if self.explore > 0 and self.explore_every > 1 else 1)

@@ -1,0 +1,134 @@
+"""Repair with revert: on constant failure, diagnose the failed trials and repair the net; a repair
+that did not help goes back.
+
+A repair is on trial until the next constant failure: if no trial since it succeeded and none
+reached a place the failed trials before it never reached, it did not help — the net goes back to
+the version before it (a ``revert`` revision) and the next candidate the diagnosis supports is
+tried; a candidate is never tried twice under the same laws. Trials that ended for a reason outside
+the net (a fault, a diverged simulation; see :data:`~..diagnosis.EVIDENCE_OUTCOMES`) are recorded
+but are no evidence: they neither count as failures nor enter a diagnosis.
+
+Before the first trial the definition is held against the mentor's demonstrations
+(:meth:`Repairs.check_definition`): a give-up rule that would have ended the mentor's own successful
+stays is moved (:mod:`..replay`), a recorded revision, so a limit that ends only some trials, and so
+never makes practice fail constantly, does not stay.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from ...petri.net import APN
+from ...petri.revision import revert
+from ...runtime.trace import Trace
+from ..diagnosis import diagnose
+from ..repair import move_limit, repair
+from ..replay import replay_limits
+from .context import Context
+from .state import PracticeState, RevisionRecord, Trying
+from .watch import RevisionWatch
+
+
+class Repairs:
+    """Constant failure, diagnosis and repair of one scenario's net; ``trace_path(k)`` is where the
+    failed trial ``k``'s trace was kept."""
+
+    def __init__(self, ctx: Context, watch: RevisionWatch, trace_path: Callable[[int], Path]):
+        self.ctx, self.watch, self.trace_path = ctx, watch, trace_path
+
+    def constant_failure(self, state: PracticeState) -> bool:
+        """``failures_in_a_row`` failures in a row since the last repair, or (with ``window``) at
+        least ``failure_rate`` of the last ``window`` trials since it."""
+        cfg = self.ctx.config
+        _, fail = state.streak
+        if fail >= cfg.failures_in_a_row and len(state.failed_since_repair) >= cfg.failures_in_a_row:
+            return True
+        if cfg.window > 0:
+            first = state.revisions[-1].after_trial + 1 if state.revisions else 0
+            since = [t for t in state.trials[-cfg.window:] if t.trial >= first]
+            if len(since) >= cfg.window:
+                return sum(not t.success for t in since) / len(since) >= cfg.failure_rate
+        return False
+
+    def check_definition(self, state: PracticeState) -> None:
+        """Before the first trial: move the give-up rules that would have ended the mentor's own
+        successful demonstrations (:func:`~..replay.replay_limits`), each a recorded revision. Not put
+        on trial like a repair from failures: the demonstrations are the evidence, and a later
+        failure need not be the limit's."""
+        ctx = self.ctx
+        mentor = ctx.learners.mentor(ctx.model.apn)
+        if mentor is not None:
+            for f in replay_limits(ctx.model.apn, mentor):
+                fix = move_limit(ctx.model.apn, f)
+                key = f"demonstrations:{f.transition}"
+                for rev in fix.revisions:
+                    ctx.record(state, replace(rev, evidence={**rev.evidence, "candidate": key}),
+                               {"findings": [f.to_json()]})
+        state.checked = True
+
+    def repair(self, state: PracticeState) -> None:
+        """Diagnose the failures since the last revision; revert the repair on trial if it did not
+        help; then try the next candidate (or record why none applies)."""
+        ctx = self.ctx
+        model = ctx.model
+        apn = model.apn
+        # every failed trial kept so far: those since the last repair are diagnosed; all of them
+        # lower the leave floors, so a resumed loop lowers them exactly as an uninterrupted one did
+        kept = {k: Trace.load(self.trace_path(k)) for k in range(state.trial) if self.trace_path(k).exists()}
+        regions = model.regions()
+        scorer = regions.scores if regions is not None else None
+        names = tuple(regions.input_names) if regions is not None else ()
+        leave = ctx.learners.include_own_stays(list(kept.values())) if regions is not None else None
+
+        def diagnosis(net: APN, trials: list[int]) -> Any:
+            ok = [t.fired for t in state.trials if t.success and t.trial in set(trials)]
+            return diagnose(net, [kept[k] for k in trials if k in kept], scorer, names, leave_below=leave,
+                            mentor=ctx.learners.mentor(net), succeeded_fired=ok)
+
+        last = state.last_revision_trial()
+        d = diagnosis(apn, [t.trial for t in state.trials if t.trial > last])
+        if state.trying is not None:
+            trying, state.trying = state.trying, None
+            helped = any(t.success for t in state.trials if t.trial > trying.after_trial) \
+                or bool(d.visited - set(trying.visited))
+            if not helped and model.version == trying.version:
+                failures = [t.trial for t in state.trials if t.trial > trying.after_trial and not t.success]
+                _, rev = revert(apn, trying.before_version, model.history.version(trying.before_version),
+                                f"{trying.key} did not help: {len(failures)} failed trial(s) since it, none reached a "
+                                f"place the failures before it had not; back to version {trying.before_version} to try "
+                                f"the next candidate", {"reverted": trying.version, "candidate": trying.key,
+                                                       "failed_trials": failures})
+                ctx.record(state, rev, d.to_json())
+                apn = model.apn
+                d = diagnosis(apn, trying.failed)
+        if ctx.config.learn and not ctx.room_to_watch(state):
+            # a repair nobody can check would go into the skill untried (a place added 9 trials before
+            # the end of a trial run made every pushed evaluation trial alternate between its two transitions)
+            left = ctx.config.max_trials - state.trial
+            self._no_repair(state, d, f"{left} trials are left, fewer than the {ctx.config.watch_trials()} it takes "
+                                      "to check a repair; the net stays as it is")
+            return
+        fix = repair(apn, d, ctx.learners, exhausted=frozenset(state.lambda_exhausted), skip=frozenset(state.tried))
+        if fix is None:
+            state.repairs_without_effect += 1
+            self._no_repair(state, d, "no repair operator applies"
+                            + (f" that was not tried already ({', '.join(state.tried)})" if state.tried else ""))
+            return
+        first = model.version
+        for rev in fix.revisions:
+            ctx.record(state, replace(rev, evidence={**rev.evidence, "candidate": fix.key}), d.to_json())
+        state.tried.append(fix.key)
+        state.trying = Trying(key=fix.key, before_version=first, version=model.version, after_trial=state.trial - 1,
+                              visited=sorted(d.visited), failed=list(state.failed_since_repair))
+        self.watch.start(state, first, model.version)
+        state.failed_since_repair = []
+
+    def _no_repair(self, state: PracticeState, d: Any, why: str) -> None:
+        """Constant failure that changes nothing: recorded with ``why`` and the diagnosis."""
+        state.revisions.append(RevisionRecord(version=None, operator="none", after_trial=state.trial - 1,
+                                              scenario=self.ctx.name, reason=f"constant failure, but {why}",
+                                              diagnosis=d.to_json()))
+        state.failed_since_repair = []
