@@ -26,7 +26,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _timing import describe, latencies, single_thread  # noqa: E402
 
 from multiform.model import SkillModel  # noqa: E402
-from multiform.tasks import pendulum as task  # noqa: E402
+from multiform.task import load_task  # noqa: E402
+task = load_task("pendulum")
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -64,7 +64,7 @@ def heldout_episodes(test_dataset: str | None, record: int, seed: int, task: str
     """The held-out demonstrations: read ``test_dataset``, or record ``record`` new ones on seeds
     ``seed``, ``seed + 1``, … (saved to ``test_dataset`` when given). Empty when neither is asked."""
     from multiform.demos.dataset import read_dataset, write_dataset
-    from multiform.tasks import get_task
+    from multiform.task import load_task
 
     if test_dataset and Path(test_dataset).exists():
         eps = list(read_dataset(test_dataset).episodes)
@@ -75,7 +75,7 @@ def heldout_episodes(test_dataset: str | None, record: int, seed: int, task: str
         return []
     from multiform.demos.record import record_many
 
-    t = get_task(task)
+    t = load_task(task)
     seeds = [seed + i for i in range(record)]
     t0 = time.perf_counter()
     eps = record_many(t.TASK, seeds, t.DEMO_ENV_KWARGS, workers=workers)

@@ -37,7 +37,8 @@ from multiform.learn.views import law_data  # noqa: E402
 from multiform.petri.skillfile import load_skill, parse_skill, skill_to_data  # noqa: E402
 from multiform.runtime.executor import Executor  # noqa: E402
 from multiform.stats import rate  # noqa: E402
-from multiform.tasks import pendulum as task  # noqa: E402
+from multiform.task import load_task  # noqa: E402
+task = load_task("pendulum")
 
 ROOT = Path(__file__).resolve().parents[1]
 

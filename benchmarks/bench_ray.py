@@ -31,7 +31,8 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 warnings.filterwarnings("ignore", message="A single label was found", category=UserWarning)
 
 from multiform.adapt.evaluation import Evaluator, Variant  # noqa: E402
-from multiform.tasks import pendulum as task  # noqa: E402
+from multiform.task import load_task  # noqa: E402
+task = load_task("pendulum")
 
 
 def small_model(root: Path) -> Path:

@@ -162,16 +162,16 @@ def faulty_model(base: Path, task: str, kind: Kind | None, strength: Any, folder
 def run_one(base: Path, task_name: str, kind: Kind | None, strength: Any, seed: int, out: Path,
             max_trials: int, eval_trials: int, workers: int, log=print) -> dict[str, Any]:
     from multiform.adapt.evaluation import Variant, evaluate
-    from multiform.adapt.practice import Practice, PracticeConfig
-    from multiform.tasks import get_task
-    task = get_task(task_name)
+    from multiform.adapt.practice import Practice
+    from multiform.task import load_task
+    task = load_task(task_name)
     name = kind.name if kind else "none"
     folder = out / task_name / f"{name}_{strength}_s{seed}"
     t0 = time.perf_counter()
     model = faulty_model(base, task_name, kind, strength, folder)
     sc = task.scenarios()[0]
-    cfg = PracticeConfig(max_trials=max_trials, seed=seed, **sc.get("config", {}))
-    state = Practice(model, folder / "practice", cfg, options=sc["options"], name=sc["name"]).run()
+    cfg = sc.practice_config(max_trials=max_trials, seed=seed)
+    state = Practice(model, folder / "practice", cfg, options=sc.options, name=sc.name).run()
     first_fail = next((t.trial for t in state.trials if not t.success), None)
     revs = [r for r in state.revisions if r.version is not None]
     reverted = {r.reason.split(" did not help")[0] for r in revs if r.operator == "revert"}

@@ -21,7 +21,8 @@ from multiform.demos.dataset import write_dataset
 from multiform.demos.record import record_many
 from multiform.job import train_model
 from multiform.model import SkillModel
-from multiform.tasks import pendulum as task
+from multiform.task import load_task
+task = load_task("pendulum")
 
 EVIL = "multiform_evil_module"          # a module that leaves a mark when imported
 

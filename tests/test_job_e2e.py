@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -60,7 +61,8 @@ def test_one_pool_runs_several_variants_as_separate_evaluations_do(run):
     """The job queues the baselines' trials while it practises, on the pool that later runs the final
     skill's: interleaved in one pool of two processes, each trial comes out as in a one-process
     evaluation of its variant alone."""
-    from multiform.tasks import pendulum as task
+    from multiform.task import load_task
+    task = load_task("pendulum")
     specs = task.evaluation_specs(4, SMALL.seed, 0.5)
     final = Variant("final", str(run / "model"), use_inverse_model=False)
     as_written = Variant("as written", str(run / "baselines" / "as_written"), use_inverse_model=False)
@@ -159,7 +161,9 @@ def test_inverse_model_trained_beside_the_laws_is_the_one_trained_after_them(run
     when it is trained afterwards in this process."""
     import numpy as np
 
-    from multiform.tasks import pendulum as task
+    from multiform.task import load_task
+
+    task = load_task("pendulum")
     dirs = {}
     for beside in (False, True):
         m = SkillModel.create(tmp_path / f"beside_{beside}", task.SKILL, run / "demos.h5", task.ENV_ID,
@@ -176,14 +180,14 @@ def test_inverse_model_trained_beside_the_laws_is_the_one_trained_after_them(run
 
 
 def _learning_practice(model_dir: Path, folder: Path):
-    from multiform.adapt.practice import Practice, PracticeConfig
-    from multiform.tasks import pendulum as task
-    sc = {s["name"]: s for s in task.scenarios()}["c_keep"]
-    cfg = PracticeConfig(**{**sc["config"], "max_trials": 12, "refit_every": 4, "refit_min_segments": 1,
-                            "revert_window": 2, "mentor_every": 3, "mentor_budget": 2, "takeover_budget": 2,
-                            "seed": 4, "target_rate": 0.0})     # refit even when the skill already succeeds
-    return Practice(SkillModel(model_dir), folder, cfg, options=sc["options"], perturb=sc["perturb"], name="c_keep",
-                    mentor=sc["mentor"](), takeover=sc["takeover"]())
+    from multiform.adapt.practice import Practice
+    from multiform.task import load_task
+    task = load_task("pendulum")
+    sc = {s.name: s for s in task.scenarios()}["c_keep"]
+    cfg = replace(sc.practice_config(max_trials=12, seed=4), refit_every=4, refit_min_segments=1, revert_window=2,
+                  mentor_every=3, mentor_trials=4, target_rate=0.0)     # refit even when the skill already succeeds
+    return Practice(SkillModel(model_dir), folder, cfg, options=sc.options, perturb=sc.perturb, name="c_keep",
+                    mentor=sc.mentor(), takeover=sc.takeover())
 
 
 def test_learning_from_practice_resumes_as_if_never_stopped(run, tmp_path):
@@ -203,8 +207,7 @@ def test_learning_from_practice_resumes_as_if_never_stopped(run, tmp_path):
         state = _learning_practice(model_dir, folder).run()
         if stop is not None:
             assert (model_dir / "experience" / "segments.jsonl").read_text().startswith(first)
-        strip = lambda t: {k: v for k, v in t.items() if k not in ("wall", "time")}  # noqa: E731
-        states.append([strip(t) for t in state.trials])
+        states.append([replace(t, wall=0.0, time="") for t in state.trials])
         segs = [json.loads(line) for line in (model_dir / "experience" / "segments.jsonl").read_text().splitlines()]
         assert len({(s["source"], s["start"], s["end"]) for s in segs}) == len(segs)
         assert all({"trial", "net_version", "laws", "judge_score", "scenario", "seed"} <= set(s) for s in segs)
@@ -212,13 +215,13 @@ def test_learning_from_practice_resumes_as_if_never_stopped(run, tmp_path):
         histories.append([(json.loads(line)["operator"], json.loads(line)["target"])
                           for line in (model_dir / "skill.history.jsonl").read_text().splitlines()])
         kept = sorted(p.name for p in (model_dir / "experience" / "takeovers").glob("*.h5"))
-        assert kept == [f"c_keep_{t['trial']}.h5" for t in state.takeovers]
+        assert kept == [f"c_keep_{t.trial}.h5" for t in state.takeovers]
         takeovers.append(list(state.takeovers))
     assert states[0] == states[1] and segments[0] == segments[1] and histories[0] == histories[1]
     assert takeovers[0] == takeovers[1]
     assert len(states[0]) == 12 and segments[0], "no own segment in 12 trials: nothing was learned from"
     assert any(op == "refit_law" for op, _ in histories[0])
-    assert sum("mentor" in t for t in states[0]) == 2
+    assert sum(t.mentor is not None for t in states[0]) == 2
 
 
 def test_practice_with_the_view_saves_every_trial_as_it_ran(run, tmp_path):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from multiform.demos.dataset import read_dataset
 from multiform.job import Job, JobConfig
-from multiform.tasks import pendulum
+from multiform.tasks.pendulum import Pendulum
 
 
 def test_demos_are_reused_only_when_seeds_and_start_options_match(tmp_path, monkeypatch):
@@ -18,7 +18,7 @@ def test_demos_are_reused_only_when_seeds_and_start_options_match(tmp_path, monk
     assert any("reusing" in s for s in lines)
 
     lines.clear()                       # the task now starts its demos elsewhere: the old file is stale
-    monkeypatch.setattr(pendulum, "demo_options", lambda seed: {"randomize": True, "x0": 0.1})
+    monkeypatch.setattr(Pendulum, "demo_options", lambda self, seed: {"randomize": True, "x0": 0.1})
     job.record()
     assert not any("reusing" in s for s in lines)
     now = [(e.seed, e.reset_options) for e in read_dataset(path)]

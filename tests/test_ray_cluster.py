@@ -29,7 +29,8 @@ from multiform.errors import InvalidInput
 from multiform.job import train_model
 from multiform.model import SkillModel
 from multiform.petri.skillfile import resolve_skill
-from multiform.tasks import pendulum as task
+from multiform.task import load_task
+task = load_task("pendulum")
 
 pytestmark = pytest.mark.slow
 

@@ -36,9 +36,13 @@ def test_bundled_tasks_satisfy_the_protocol(name):
     assert task_for_env(task.ENV_ID).TASK == name
 
 
-def test_bundled_pendulum_keeps_its_own_evaluation(tmp_path):
-    from multiform.tasks import pendulum
-    assert load_task("pendulum").evaluation_specs(6, 3, 0.5) == pendulum.evaluation_specs(6, 3, 0.5)
+def test_evaluation_trials_are_drawn_as_documented():
+    pendulum, nunchaku = load_task("pendulum"), load_task("nunchaku")
+    specs = pendulum.evaluation_specs(6, 3, 0.5)
+    assert [s.seed for s in specs] == [50_300_000 + i for i in range(6)]
+    assert [s.push is not None for s in specs] == [True, False] * 3
+    assert specs[2].push == pendulum.push(50_300_002)
+    assert [s.seed for s in nunchaku.evaluation_specs(2, 3, 0.5)] == [70_300_000, 70_300_001]
 
 
 def test_a_file_task_gets_the_defaults(tmp_path):
@@ -47,7 +51,11 @@ def test_a_file_task_gets_the_defaults(tmp_path):
     assert task.TASK == "mine" and task.demo_options(3) == {} and task.train_inverse_model is None
     specs = task.evaluation_specs(3, 1, 0.5)
     assert [s.seed for s in specs] == [50_100_000, 50_100_001, 50_100_002] and all(s.push is None for s in specs)
-    assert [s["name"] for s in task.scenarios()] == ["practice"]
+    repair, learn = task.scenarios()
+    assert (repair.name, repair.learn, learn.name, learn.learn) == ("practice", False, "keep", True)
+    cfg = learn.practice_config(max_trials=50, seed=1)
+    assert cfg.learn and cfg.exam and cfg.check_demonstrations and cfg.max_trials == 50
+    assert not repair.practice_config(30, 0).learn
     assert list(task.ablations(None, tmp_path, None)) == []
     with pytest.raises(InvalidInput, match="no inverse model"):
         task.robot_env_kwargs(True)
@@ -73,7 +81,7 @@ def test_a_module_task_and_an_installed_entry_point(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("spec, words", [
     ("juggling", "unknown task"), ("no_such_pkg_xyz:T", "no module"), ("json:nothing", "has no nothing"),
-    ("json:dumps", "lacks TASK"), ("/no/such/file.py:T", "no such file"), (":T", "package.module:NAME")])
+    ("json:dumps", "not a multiform.Task"), ("json", "unknown task"), ("/no/such/file.py:T", "no such file"), (":T", "package.module:NAME")])
 def test_a_bad_spec_is_refused_naming_it(spec, words):
     with pytest.raises(InvalidInput, match=words) as info:
         load_task(spec)

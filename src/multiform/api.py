@@ -74,13 +74,17 @@ def practise(model: Any, task: TaskLike, scenario: str | None = None, out: str |
     """Practise the model through one of the task's scenarios (default: its first); constant
     failure triggers diagnosis and a repair of the net, recorded as a revision. Returns the
     :class:`~multiform.adapt.practice.PracticeState` (trials, revisions, why it stopped)."""
-    from .adapt.practice import Practice
     model = open_model(model) if isinstance(model, (str, os.PathLike)) else model
     task = load_task(task)
-    scenarios = {s["name"]: s for s in task.scenarios()}
-    sc = scenarios[scenario] if scenario is not None else next(iter(scenarios.values()))
-    folder = Path(out) if out is not None else Path(model.path) / "practice" / sc["name"]
-    return Practice.for_scenario(model, folder, sc, max_trials, seed).run(progress=progress)
+    scenarios = task.scenarios()
+    names = [s.name for s in scenarios]
+    if scenario is not None and scenario not in names:
+        raise InvalidInput(f"task {task.TASK} has no scenario {scenario!r}; its scenarios: {', '.join(names)}",
+                           element="scenario")
+    index = names.index(scenario) if scenario is not None else 0
+    sc = scenarios[index]
+    folder = Path(out) if out is not None else Path(model.path) / "practice" / sc.name
+    return sc.practice(model, folder, max_trials, seed + index).run(progress=progress)
 
 
 def evaluate(model: Any, task: TaskLike, trials: int = 200, seed: int = 0, push_fraction: float = 0.5,

@@ -372,20 +372,20 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_practice(args: argparse.Namespace) -> int:
-    from .adapt.practice import Practice
     from .model import SkillModel
     from .task import load_task, task_for_env
     task = load_task(args.task) if args.task else None      # first: a user's task registers its env
     model = SkillModel(args.model, env_modules=args.env_module)
     task = task or task_for_env(model.manifest["env"])
     args.task = task.TASK
-    scen = {s["name"]: s for s in task.scenarios()}
-    if args.scenario not in scen:
-        raise InvalidInput(f"unknown scenario {args.scenario!r}; {args.task} has: {', '.join(scen)}",
+    names = [s.name for s in task.scenarios()]
+    if args.scenario not in names:
+        raise InvalidInput(f"unknown scenario {args.scenario!r}; {args.task} has: {', '.join(names)}",
                            element="--scenario")
-    sc = scen[args.scenario]
+    index = names.index(args.scenario)
+    sc = task.scenarios()[index]
     folder = Path(args.out or Path(args.model) / "practice" / args.scenario)
-    practice = Practice.for_scenario(model, folder, sc, args.max_trials, args.seed, observe=_views(args, folder / "view"))
+    practice = sc.practice(model, folder, args.max_trials, args.seed + index, observe=_views(args, folder / "view"))
 
     def show(state, trial):
         mark = "ok  " if trial.success else "FAIL"

@@ -21,13 +21,11 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 from tqdm import tqdm
 
-from .adapt.evaluation import Evaluator, TrialSpec, Variant
-from .adapt.practice import Practice
+from .adapt.evaluation import Evaluator, Variant
 from .demos.dataset import read_dataset, write_dataset
 from .demos.episode import Episode
 from .demos.record import demo_push, record_many
@@ -40,7 +38,7 @@ from .model import SkillModel, staged_model_dir
 from .petri.net import APN
 from . import __version__
 from .stats import evaluation_split, rate
-from .task import Task, load_task
+from .task import Task, TrialSpec, load_task
 
 Log = Callable[[str], None]
 
@@ -56,9 +54,8 @@ class JobConfig:
                                      # the robot time of the 200 evaluation trials (about 80 s of the main job)
     practice_max_trials: int = 30    # per repair scenario
     practice_budget: int = 100       # trials of all scenarios together; learning from practice gets the rest
-    learn: bool | None = None        # also learn from practice (own experience, the mentor's grades of some
-                                     # trials) in the task's learning scenario; False: practice repairs the net
-                                     # only; None: the task's LEARN
+    learn: bool = True               # run the task's scenarios that learn from practice (own experience, the
+                                     # mentor's grades and takeovers); False: practice repairs the net only
     workers: int = 2
     seed: int = 0
     push_fraction: float = 0.5
@@ -71,15 +68,13 @@ class JobConfig:
 class Job:
     """One run folder for one task."""
 
-    def __init__(self, task: str | Task | ModuleType, out: str | Path, config: JobConfig | None = None,
+    def __init__(self, task: str | Task, out: str | Path, config: JobConfig | None = None,
                  log: Log = print, progress: bool = True, view: str | None = None):
         self.task = load_task(task)
         self.out = Path(out)
         self.cfg = config or JobConfig()
         if self.cfg.demos is None:
-            self.cfg = replace(self.cfg, demos=int(getattr(self.task, "DEMOS", 40)))
-        if self.cfg.learn is None:
-            self.cfg = replace(self.cfg, learn=bool(getattr(self.task, "LEARN", False)))
+            self.cfg = replace(self.cfg, demos=int(self.task.DEMOS))
         self.log = log
         self.progress = progress
         self.view = view            # None, or where the picked trials stream (see multiform.view.stream.viewer_url)
@@ -151,30 +146,30 @@ class Job:
     def practise(self, model: SkillModel) -> dict[str, Any]:
         results = {}
         used = 0
-        for sc in self.task.scenarios():
-            if sc.get("learn") and not self.cfg.learn:
+        for index, sc in enumerate(self.task.scenarios()):
+            if sc.learn and not self.cfg.learn:
                 continue
-            folder = self.out / "practice" / sc["name"]
-            limit = self.cfg.practice_max_trials if not sc.get("learn") else self.cfg.practice_budget - used
+            folder = self.out / "practice" / sc.name
+            limit = self.cfg.practice_max_trials if not sc.learn else self.cfg.practice_budget - used
             if limit <= 0:
                 continue
-            practice = Practice.for_scenario(model, folder, sc, limit, self.cfg.seed)
+            practice = sc.practice(model, folder, limit, self.cfg.seed + index)
             cfg = practice.config
-            with self._bar(cfg.max_trials, f"practice {sc['name']}") as bar:
+            with self._bar(cfg.max_trials, f"practice {sc.name}") as bar:
                 bar.update(practice.load_state().trial)
                 state = practice.run(progress=lambda st, tr: bar.update(1))
             used += len(state.trials)
             revs = [r for r in state.revisions if r.operator != "none"]
             first_ok = next((t.trial for t in state.trials if t.success), None)
-            results[sc["name"]] = {
-                "title": sc["title"], "trials": len(state.trials), "stop_reason": state.stop_reason,
+            results[sc.name] = {
+                "title": sc.title, "trials": len(state.trials), "stop_reason": state.stop_reason,
                 "successes": sum(t.success for t in state.trials), "first_success_trial": first_ok,
                 "revisions": [{"version": r.version, "operator": r.operator, "target": r.target, "reason": r.reason,
                                "after_trial": r.after_trial} for r in revs],
                 "outcomes": [t.outcome for t in state.trials], "state": str(folder / "state.json"),
                 "robot_seconds": round(sum(t.duration for t in state.trials), 1),
                 **(_learning_summary(state) if cfg.learn else {})}
-            self.log(f"  {sc['name']}: {len(state.trials)} trials, revisions: "
+            self.log(f"  {sc.name}: {len(state.trials)} trials, revisions: "
                      + (", ".join(f"{r['operator']} {r['target']}" for r in revs) or "none")
                      + f"; {state.stop_reason}")
         return results
@@ -211,7 +206,7 @@ class Job:
 
     def _first_learned(self, model: SkillModel) -> int | None:
         """The first net version a learning scenario recorded (None: learning revised nothing)."""
-        learning = {sc["name"] for sc in self.task.scenarios() if sc.get("learn")}
+        learning = {sc.name for sc in self.task.scenarios() if sc.learn}
         return next((r.version for r in model.history.revisions() if r.evidence.get("scenario") in learning), None)
 
     def evaluate(self, model: SkillModel, ev: Evaluator, queued: list[tuple[Variant, list, tqdm]] | None = None
@@ -254,7 +249,7 @@ class Job:
         with Evaluator(self._worker_task, self.cfg.workers, start_method=self.cfg.start_method, ray=self.cfg.ray) as ev:
             # baselines built from the trained model alone run while the robot practises, on the
             # core practice leaves idle; the others once practice has revised the net
-            early = not getattr(self.task, "ABLATIONS_AFTER_PRACTICE", True)
+            early = not self.task.ABLATIONS_AFTER_PRACTICE
             queued = self._stage("baselines", lambda: self.baselines(model, ev)) if early else None
             scenarios = self._stage("practice", lambda: self.practise(model))
             main, rows = self._stage("evaluate", lambda: self.evaluate(model, ev, queued))

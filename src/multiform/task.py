@@ -8,12 +8,13 @@ the inverse model's trainer — is a *task*: a subclass of :class:`Task` (or any
 with the same attributes). The bundled ``pendulum`` and ``nunchaku`` are two tasks.
 
 Only ``TASK``, ``SKILL``, ``ENV_ID`` and :meth:`Task.physical_success` are required; every other
-part has a default here. A task is found by :func:`load_task` from
+part has a default here, and practice defaults to the method's own settings
+(:class:`~multiform.adapt.practice.PracticeConfig`): a task holds only what is specific to it. A
+task is found by :func:`load_task` from
 
 * a bundled name (``pendulum``, ``nunchaku``),
 * an installed entry point of the group ``multiform.tasks`` (``name = "package.module:NAME"``),
-* ``package.module:NAME`` or ``path/to/file.py:NAME`` (NAME a :class:`Task` subclass, instance or
-  module),
+* ``package.module:NAME`` or ``path/to/file.py:NAME`` (NAME a :class:`Task` subclass or instance),
 
 so worker processes can load the same task from its name.
 """
@@ -21,16 +22,63 @@ so worker processes can load the same task from its name.
 from __future__ import annotations
 
 import importlib
+import math
 import sys
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
 from typing import Any
 
 from .errors import InvalidInput
 
-BUNDLED = {"pendulum": "multiform.tasks.pendulum", "nunchaku": "multiform.tasks.nunchaku"}
+BUNDLED = {"pendulum": "multiform.tasks.pendulum:Pendulum", "nunchaku": "multiform.tasks.nunchaku:Nunchaku"}
 ENTRY_POINT_GROUP = "multiform.tasks"
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """One evaluation trial: seed, env reset options, and the experimenter's push (if any)."""
+
+    seed: int
+    options: dict[str, Any] = field(default_factory=dict)
+    push: dict[str, Any] | None = None          # PushInPlace arguments
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One practice run of a task: which trials (``options``: reset options per draw, ``perturb``:
+    the experimenter's push per draw, or None), whether it learns from practice (``learn``; else it
+    only repairs the net) and with the mentor's help (``mentor``: a factory of its grader of a
+    trial; ``takeover``: a factory of its takeover of a failed trial, see
+    :mod:`multiform.adapt.takeover`), and the :class:`~multiform.adapt.practice.PracticeConfig`
+    fields in which it departs from the method's defaults (``config``; each with its reason in the
+    task). Its trials are drawn from the job seed plus the scenario's place in the task's list."""
+
+    name: str
+    title: str
+    options: Callable[[int], dict[str, Any]]
+    perturb: Callable[[int], Any] | None = None
+    learn: bool = False
+    mentor: Callable[[], Any] | None = None
+    takeover: Callable[[], Any] | None = None
+    config: Mapping[str, Any] = field(default_factory=dict)
+
+    def practice_config(self, max_trials: int, seed: int) -> Any:
+        """The scenario's :class:`~multiform.adapt.practice.PracticeConfig`."""
+        from .adapt.practice import REPAIR_ONLY, PracticeConfig
+        return PracticeConfig(**({} if self.learn else REPAIR_ONLY), **self.config, max_trials=max_trials, seed=seed)
+
+    def practice(self, model: Any, folder: str | Path, max_trials: int, seed: int = 0,
+                 observe: Callable[[int, Any], Any] | None = None) -> Any:
+        """A :class:`~multiform.adapt.practice.Practice` of ``model`` in ``folder`` through this
+        scenario (``seed``: the job seed plus the scenario's place in its task's list)."""
+        from .adapt.practice import Practice
+        cfg = self.practice_config(max_trials, seed)
+        mentor = self.mentor() if self.learn and self.mentor is not None else None
+        takeover = self.takeover() if self.learn and self.takeover is not None and cfg.budgets(True)[1] else None
+        return Practice(model, folder, cfg, options=self.options, perturb=self.perturb, name=self.name,
+                        mentor=mentor, observe=observe, takeover=takeover)
 
 
 class Task:
@@ -51,15 +99,14 @@ class Task:
     SKILL: str = ""                             # skill file, or a bundled skill's name
     ENV_ID: str = ""                            # the Gymnasium env id
     DEMO_ENV_KWARGS: dict[str, Any] = {}        # gymnasium.make arguments while the mentor demonstrates
-    DEMOS: int = 40                             # the main job's demonstrations
-    LEARN: bool = False                         # the main job learns from practice (a scenario with "learn")
+    DEMOS: int = 10                             # the main job's demonstrations
     DESCRIPTION: str = ""
     TARGET_SUCCESS_RATE: float = 0.9
+    EVALUATION_SEEDS: int = 50_000_000          # evaluation trial i of job seed s: seed EVALUATION_SEEDS + 100000 s + i
     PLOT_VARIABLES: list[tuple[str, str]] = []  # (variable, axis label) of the report's motion plot
     REPORT: dict[str, str] = {}                 # the report's words for its pictures
     ABLATIONS_AFTER_PRACTICE: bool = True       # baselines need the practised model (False: run beside practice)
     train_inverse_model: Any = None             # (model, seed=, log=, laws_ready=) -> info; None: direct commands
-    demo_push: Any = None                       # (seed) -> PushDuring arguments of a demo's push, or None
 
     spec: str = ""                              # how load_task found it (set by load_task)
 
@@ -68,8 +115,30 @@ class Task:
         raise NotImplementedError(f"task {self.TASK or type(self).__name__} has no physical_success")
 
     def make_mentor(self, **kwargs: Any) -> Any:
-        """A scripted mentor (:class:`multiform.demos.episode.Mentor`): ``reset``, ``act``, ``label``."""
+        """A scripted mentor (:class:`multiform.demos.episode.Mentor`): ``reset``, ``act``, ``label``,
+        and optionally ``grade_trial`` (its verdict on each stay of a practice trial)."""
         raise InvalidInput(f"task {self.TASK} has no scripted mentor; record demonstrations yourself", element="task")
+
+    def demo_push(self, seed: int) -> dict[str, Any] | None:
+        """The experimenter's push in demonstration ``seed`` (:class:`multiform.demos.record.PushDuring`
+        arguments), or None: no push."""
+        return None
+
+    def mentor_grader(self) -> Callable[[Any, Any], list] | None:
+        """The scripted mentor watching a practice trial: one verdict per stay, from the trace alone
+        (its ``grade_trial``); None if the task has no scripted mentor that grades trials."""
+        try:
+            mentor = self.make_mentor()
+        except InvalidInput:
+            return None
+        if not callable(getattr(mentor, "grade_trial", None)):
+            return None
+        return lambda episode, apn: mentor.grade_trial(episode)
+
+    def mentor_takeover(self) -> Callable[[Any, int], Any] | None:
+        """The mentor taking over a failed practice trial (trace, tick -> a demonstration from there;
+        :mod:`multiform.adapt.takeover`), or None: it does not."""
+        return None
 
     def demo_options(self, seed: int) -> dict[str, Any]:
         """Reset options of demonstration ``seed``."""
@@ -80,30 +149,45 @@ class Task:
         return {}
 
     def push(self, seed: int) -> dict[str, Any] | None:
-        """The experimenter's push in evaluation trial ``seed`` (:class:`multiform.adapt.perturb.PushInPlace`
+        """The experimenter's push in trial ``seed`` (:class:`multiform.adapt.perturb.PushInPlace`
         arguments; the env needs ``push(size, duration)``), or None: no disturbance."""
         return None
 
-    def evaluation_specs(self, n: int, seed: int, push_fraction: float) -> list:
-        """``n`` evaluation trials (:class:`multiform.adapt.evaluation.TrialSpec`); every trial whose
-        index falls in ``push_fraction`` gets :meth:`push`."""
-        from .adapt.evaluation import TrialSpec
+    def evaluation_specs(self, n: int, seed: int, push_fraction: float) -> list[TrialSpec]:
+        """``n`` evaluation trials of job seed ``seed``: trial ``i`` has seed ``EVALUATION_SEEDS +
+        100000 * seed + i`` and its :meth:`trial_options`; every trial whose index falls in
+        ``push_fraction`` (every second one at 0.5, counting from the first) gets :meth:`push`."""
         every = 0 if push_fraction <= 0 else max(1, int(round(1.0 / push_fraction)))
         out = []
         for i in range(n):
-            s = 50_000_000 + seed * 100_000 + i
+            s = self.EVALUATION_SEEDS + seed * 100_000 + i
             out.append(TrialSpec(seed=s, options=self.trial_options(s),
                                  push=self.push(s) if every and i % every == 0 else None))
         return out
 
-    def scenarios(self) -> list[dict[str, Any]]:
-        """Practice scenarios, in order: ``name``, ``title``, ``options`` (seed -> reset options) and
-        optionally ``perturb`` (trial -> perturbation), ``config`` (PracticeConfig fields), ``seed``,
-        ``mentor`` (factory of a grader), ``takeover`` (factory of the mentor's takeover of a failed trial:
-        trace, tick -> a demonstration from there; see :mod:`multiform.adapt.takeover`), ``learn``.
-        Default: one scenario, ``practice``, repairing on three failures in a row."""
-        return [{"name": "practice", "title": "practice from the task's trial starts", "options": self.trial_options,
-                 "config": {"failures_in_a_row": 3, "success_streak": 5}}]
+    def pushed(self, base: int, fraction: float) -> Callable[[int], Any] | None:
+        """The experimenter's pushes in a practice scenario: trial ``k`` gets :meth:`push` of seed
+        ``base + k`` in ``fraction`` of the trials, by pairs (a plain and an exploring trial alike);
+        None if the task never pushes or ``fraction`` is 0."""
+        if fraction <= 0 or self.push(base) is None:
+            return None
+        from .adapt.perturb import PushInPlace
+
+        def perturb(k: int) -> Any:
+            j = k // 2
+            hit = math.ceil((j + 1) * fraction - 1e-9) > math.ceil(j * fraction - 1e-9)
+            return PushInPlace(**self.push(base + k)) if hit else None
+        return perturb
+
+    def scenarios(self) -> list[Scenario]:
+        """Practice scenarios, in order. Default: ``practice``, which repairs the net from the task's
+        trial starts, then ``keep``, practice as the skill will be evaluated (pushed in half the
+        trials where the task pushes) that also learns from its own graded experience, with the
+        scripted mentor's grades and takeovers where the task has them."""
+        return [Scenario("practice", "practice from the task's trial starts: repair the net", self.trial_options),
+                Scenario("keep", "practice as evaluated, learning from its own graded experience",
+                         self.trial_options, perturb=self.pushed(1_000, 0.5), learn=True,
+                         mentor=self.mentor_grader, takeover=self.mentor_takeover)]
 
     def robot_env_kwargs(self, inverse_model: bool) -> dict[str, Any]:
         """gymnasium.make arguments of the robot's own trials (torques with the inverse model)."""
@@ -120,27 +204,14 @@ class Task:
         return f"<task {self.TASK or type(self).__name__} ({self.spec or 'in memory'})>"
 
 
-class ModuleTask(Task):
-    """A module (as the bundled tasks are) or any object with the task attributes, read through at
-    each use, with :class:`Task`'s defaults for what it lacks."""
-
-    def __init__(self, module: Any):
-        self.module = module
-
-    def __getattribute__(self, name: str) -> Any:
-        if not name.startswith("_") and name not in ("module", "spec"):
-            module = object.__getattribute__(self, "module")
-            if hasattr(module, name):
-                return getattr(module, name)
-        return object.__getattribute__(self, name)
-
-
 def as_task(obj: Any, spec: str = "") -> Task:
-    """``obj`` as a :class:`Task`: a Task instance as it is, a Task subclass instantiated, a module
-    or other object wrapped with the defaults for what it lacks."""
+    """``obj`` as a :class:`Task`: a Task instance as it is, a Task subclass instantiated."""
     if isinstance(obj, type) and issubclass(obj, Task):
         obj = obj()
-    task = obj if isinstance(obj, Task) else ModuleTask(obj)
+    if not isinstance(obj, Task):
+        raise InvalidInput(f"is not a multiform.Task subclass or instance (got {type(obj).__name__})",
+                           element=spec or repr(obj))
+    task = obj
     missing = [a for a in ("TASK", "SKILL", "ENV_ID") if not getattr(task, a, "")]
     if missing:
         raise InvalidInput(f"is not a task: it lacks {', '.join(missing)}", element=spec or repr(obj))
@@ -152,7 +223,7 @@ def as_task(obj: Any, spec: str = "") -> Task:
 _LOADED: dict[str, Task] = {}
 
 
-def load_task(spec: str | Task | ModuleType) -> Task:
+def load_task(spec: str | Task) -> Task:
     """The task ``spec`` names (see the module docstring); a Task passes through. Bad specs raise
     :class:`~multiform.errors.InvalidInput` naming the spec."""
     if not isinstance(spec, str):
@@ -166,7 +237,8 @@ def load_task(spec: str | Task | ModuleType) -> Task:
 
 def _resolve(spec: str) -> Any:
     if spec in BUNDLED:
-        return importlib.import_module(BUNDLED[spec])
+        module, _, name = BUNDLED[spec].partition(":")
+        return getattr(importlib.import_module(module), name)
     if ":" not in spec:
         ep = _entry_points().get(spec)
         if ep is None:

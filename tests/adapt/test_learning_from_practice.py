@@ -355,7 +355,7 @@ def test_the_exam_replays_the_draws_of_the_plain_trials_before_the_revision(tmp_
     assert [practice.watch.exam_draw(PracticeState(trial=6 + i, trials=trials, watch=state.watch))
             for i in range(4)] == [0, 2, 1, None]
     # without an exam nothing is replayed
-    plain = Practice(model, tmp_path / "q", PracticeConfig(learn=True), name="c")
+    plain = Practice(model, tmp_path / "q", PracticeConfig(learn=True, exam=False), name="c")
     fresh = PracticeState(trial=6, trials=trials)
     plain.watch.start(fresh, 0, 1)
     assert fresh.watch.draws is None and plain.watch.exam_draw(fresh) is None

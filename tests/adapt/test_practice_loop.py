@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 import multiform
-from multiform.adapt.practice import Practice, PracticeConfig, state_from_json
+from multiform.adapt.practice import Practice, state_from_json
 
 
 @pytest.fixture(scope="module")
@@ -27,8 +27,8 @@ def trained(tmp_path_factory, mountain_car_class):
 
 def _practice(task, model_dir: Path, folder: Path, max_trials: int = 8) -> Practice:
     sc = task.scenarios()[0]
-    return Practice(multiform.open_model(model_dir), folder, PracticeConfig(max_trials=max_trials, seed=1),
-                    options=sc["options"], name=sc["name"])
+    return Practice(multiform.open_model(model_dir), folder, sc.practice_config(max_trials=max_trials, seed=1),
+                    options=sc.options, name=sc.name)
 
 
 def test_constant_failure_is_repaired_and_the_repair_then_succeeds(trained, tmp_path):

@@ -52,7 +52,7 @@ def test_a_failed_trial_gets_one_takeover_within_the_budget_kept_apart_with_its_
                        observation_names=("theta", "omega", "x", "xdot"), command_names=("v_cmd",), dt=0.01,
                        seed=int(trace.seed), labels=[SegmentLabel(0, n, "t2", True)])
 
-    practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, takeover_budget=1), name="c",
+    practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, mentor_trials=2), name="c",
                         takeover=takeover)
     v = np.zeros((400, 6))
     v[:, 0] = np.linspace(np.pi, 2.0, 400)

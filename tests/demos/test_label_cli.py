@@ -20,7 +20,8 @@ from multiform.learn.views import MIRROR_SUFFIX
 from multiform.model import SkillModel
 from multiform.petri.skillfile import bundled_skills
 from multiform.runtime.executor import Executor
-from multiform.tasks import pendulum as task
+from multiform.task import load_task
+task = load_task("pendulum")
 
 SEEDS = [0, 1, 2, 9]               # demos without a push (each has one P1 and one P2 segment)
 

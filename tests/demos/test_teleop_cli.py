@@ -13,7 +13,8 @@ import pytest  # noqa: E402
 
 from multiform import cli  # noqa: E402
 from multiform.demos.dataset import read_dataset, write_dataset  # noqa: E402
-from multiform.tasks import pendulum as task  # noqa: E402
+from multiform.task import load_task  # noqa: E402
+task = load_task("pendulum")
 
 
 def key(k: int, down: bool = True) -> None:

@@ -17,12 +17,12 @@ from multiform.demos.record import record_many
 from multiform.errors import InvalidInput
 from multiform.learn.training import LawSettings, fit_law
 from multiform.petri.skillfile import parse_skill
-from multiform.tasks import get_task
+from multiform.task import load_task
 
 
 @pytest.fixture(scope="module")
 def demos(tmp_path_factory):
-    task = get_task("pendulum")
+    task = load_task("pendulum")
     eps = record_many("pendulum", [0, 1, 2], task.DEMO_ENV_KWARGS)
     path = tmp_path_factory.mktemp("lr") / "demos.h5"
     write_dataset(path, eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)

@@ -12,12 +12,12 @@ import robomimic
 
 from multiform.demos.dataset import read_dataset, write_dataset
 from multiform.demos.record import record_many
-from multiform.tasks import get_task
+from multiform.task import load_task
 
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
-    task = get_task("pendulum")
+    task = load_task("pendulum")
     eps = record_many("pendulum", [0, 1], task.DEMO_ENV_KWARGS)
     path = tmp_path_factory.mktemp("rm") / "demos.h5"
     write_dataset(path, eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)

@@ -8,7 +8,8 @@ from multiform.learn.condition import switch_windows, window_hits
 from multiform.learn.training import fit_switch_condition
 from multiform.learn.views import switch_data
 from multiform.petri.skillfile import load_skill
-from multiform.tasks import pendulum as task
+from multiform.task import load_task
+task = load_task("pendulum")
 
 NAMES = ["theta", "omega", "x"]
 

@@ -15,7 +15,8 @@ from multiform.learn.training import (LawSettings, fit_judge, fit_law, fit_regio
 from multiform.demos.pendulum_mentor import BALANCE_GAINS
 from multiform.learn.views import MIRROR_SUFFIX, law_data, mirror_episode, stays, success_mask, value_matrix
 from multiform.petri.skillfile import load_skill
-from multiform.tasks import pendulum as task
+from multiform.task import load_task
+task = load_task("pendulum")
 
 
 @pytest.fixture(scope="module")

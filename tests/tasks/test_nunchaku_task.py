@@ -17,23 +17,27 @@ from multiform.petri.firing import Firing
 from multiform.petri.skillfile import load_skill
 from multiform.runtime.executor import Executor
 from multiform.runtime.trace import Trace
-from multiform.tasks import get_task
-from multiform.tasks import nunchaku as task
+from multiform.task import load_task
+from multiform.tasks import nunchaku
+
+task = load_task("nunchaku")
 
 
 def test_task_interface():
-    assert get_task("nunchaku") is task
+    assert isinstance(task, nunchaku.Nunchaku) and load_task("nunchaku") is task
     apn = load_skill(task.SKILL)
     assert apn.env == task.ENV_ID
     for name, _ in task.PLOT_VARIABLES:
         assert name in OBSERVATION_NAMES or name in apn.derived
-    assert task.train_inverse_model is None and task.robot_env_kwargs(True) == task.robot_env_kwargs(False) == {}
+    assert task.train_inverse_model is None and task.robot_env_kwargs(False) == {}
     specs = task.evaluation_specs(120, 0, 0.5)
     assert len(specs) == 120 and len({s.seed for s in specs}) == 120
     assert all(s.push is None and s.options == {"randomize": True} for s in specs)
     assert not {s.seed for s in specs} & {s.seed for s in task.evaluation_specs(120, 1, 0.5)}
     for sc in task.scenarios():
-        assert {"name", "title", "options"} <= set(sc) and sc["options"](3) == {"randomize": True}
+        assert sc.perturb is None and sc.options(3) == {"randomize": True}
+    repair, learn = task.scenarios()
+    assert not repair.learn and learn.learn and learn.mentor is not None and learn.takeover is None
     assert 0.5 < task.TARGET_SUCCESS_RATE <= 1.0
 
 
@@ -61,7 +65,7 @@ def _flip(hold_ticks: int = 600, touch_at: int | None = 1150):
 
 def test_physical_success_needs_the_whole_flip():
     assert task.physical_success(_trace(*_flip(), held="b"))
-    ev = task.flip_events(_trace(*_flip(), held="b"))
+    ev = nunchaku.flip_events(_trace(*_flip(), held="b"))
     assert ev["release"] == pytest.approx(1.0) and ev["touch"] == pytest.approx(1.15)
     assert ev["catch"] == pytest.approx(1.3) and ev["held_for"] == pytest.approx(0.6)
     assert not task.physical_success(_trace(*_flip(), held="a"))             # caught the rod it let go

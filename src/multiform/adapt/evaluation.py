@@ -15,20 +15,12 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from ..parallel import mp_context, ray_backend
 from ..stats import rate
-
-
-@dataclass(frozen=True)
-class TrialSpec:
-    """One evaluation trial: seed, env reset options, and the experimenter's push (if any)."""
-
-    seed: int
-    options: dict[str, Any] = field(default_factory=dict)
-    push: dict[str, Any] | None = None          # PushInPlace arguments
+from ..task import TrialSpec
 
 
 @dataclass(frozen=True)

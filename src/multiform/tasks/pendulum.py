@@ -14,208 +14,180 @@ from typing import Any
 import numpy as np
 
 from ..runtime.trace import Trace
+from ..task import Scenario, Task
 
-ENV_ID = "multiform/ArmPendulum-v0"
-SKILL = "pendulum_strict"          # the mentor's definition as first written (t1 over-strict)
-SKILL_SOUND = "pendulum"           # the same net with a workable t1
-DEMO_ENV_KWARGS = {"action_mode": "ee"}
 PUSH_PLACE = "P2"
 PUSH_AFTER = 1.5                   # s of balancing before the experimenter pushes
 PUSH_DURATION = 0.1                # s
 PUSH_SIZE = 0.5                    # N m about the hinge; more than the balance law absorbs
 BALANCE_ANGLE = 0.5                # rad: the physical check's "upright"
 BALANCE_HOLD = 5.0                 # s
-
-
-def make_mentor(**kwargs: Any):
-    """The scripted mentor standing in for a person with a joystick."""
-    from ..demos.pendulum_mentor import PendulumMentor
-    return PendulumMentor(**kwargs)
-
-
 FALLING_DEMOS = 0.25               # fraction of demos that start with the pendulum falling from near upright
 OFFSET_DEMOS = 0.4                 # fraction of demos that start with the hand off-centre
 OFFSET_RANGE = 0.33                # m, |x0| of those
-
-
-def demo_options(seed: int) -> dict[str, Any]:
-    """Reset options of demonstration ``seed``: pendulum length and mass ±20 %, random start; a
-    quarter of the demos start with the pendulum falling from near upright (|θ| ≤ 0.6 rad, 2-5 rad/s),
-    as after a push, so the mentor also shows a swing-up that brakes a pendulum with too much energy
-    (from hanging alone the swing-up law never sees one, and after a push it let the pendulum spin).
-    Independently, 40 % start with the hand anywhere in the stroke (|x0| ≤ 0.33 m): after a push the
-    balance law runs the hand to the workspace limit, where a mentor who always starts centred never
-    showed a swing-up (the law commanded next to nothing there)."""
-    rng = np.random.default_rng([seed, 3])
-    opts: dict[str, Any] = {"randomize": True}
-    if rng.random() < FALLING_DEMOS:
-        opts.update(theta0=float(rng.uniform(-0.6, 0.6)), omega0=float(rng.choice([-1.0, 1.0]) * rng.uniform(2.0, 5.0)))
-    hand = np.random.default_rng([seed, 4])
-    if hand.random() < OFFSET_DEMOS:
-        opts["x0"] = float(hand.uniform(-OFFSET_RANGE, OFFSET_RANGE))
-    return opts
-
-
 PUSHED_DEMOS = 0.3                 # fraction of demos in which the experimenter pushes the balanced pendulum
 
 
-def demo_push(seed: int) -> dict[str, Any] | None:
-    """The experimenter's push in demonstration ``seed``, as in practice and evaluation (:func:`push`),
-    in ``PUSHED_DEMOS`` of the demos: the mentor then shows how it swings the pendulum up again from
-    what the push leaves behind (the hand at the end of its stroke, the pendulum spinning)."""
-    if np.random.default_rng([seed, 5]).random() >= PUSHED_DEMOS:
-        return None
-    p = push(seed)
-    return {"tags": ("t1", "t3"), "after": p["after"], "size": p["size"], "duration": p["duration"]}
+class Pendulum(Task):
+    """The arm swings up and balances a pendulum hanging from its hand, taught by a scripted mentor at
+    a joystick from the mentor's over-strict definition ``pendulum_strict``."""
 
+    TASK = "pendulum"
+    ENV_ID = "multiform/ArmPendulum-v0"
+    SKILL = "pendulum_strict"          # the mentor's definition as first written (t1 over-strict)
+    SKILL_SOUND = "pendulum"           # the same net with a workable t1
+    DEMO_ENV_KWARGS = {"action_mode": "ee"}
+    DEMOS = 10                         # the fewest from which job seeds 0, 1 and 2 all reach 95 % (pushed 90/100)
+    DESCRIPTION = ("A 6-axis arm (AUBO i5 kinematics, MuJoCo) learns to swing up and balance an inverted pendulum "
+                   "from a scripted mentor's joystick demonstrations, labels and over-strict definition.")
+    TARGET_SUCCESS_RATE = 0.95
+    REPORT = {          # the report's words for this task's pictures (the paper's figure numbers)
+        "motion_figure": "Fig. 7",
+        "success_trial": "a successful trial of the learned skill: start (t0), swing-up repeated (t2), switch to "
+                         "balancing (t1)",
+        "recovery_trial": "pushed while balancing: the added transition backs up to swing-up, then balances again",
+    }
+    PLOT_VARIABLES = [("theta", "θ [rad]"), ("omega", "ω [rad/s]"), ("x", "x [m]"), ("xdot", "ẋ [m/s]")]
+    ABLATIONS_AFTER_PRACTICE = False   # the baselines are copies of the trained model: run while it practises
 
-def trial_options(seed: int) -> dict[str, Any]:
-    """Reset options of practice and evaluation trials (same randomisation as the demos)."""
-    return {"randomize": True}
+    def make_mentor(self, **kwargs: Any):
+        """The scripted mentor standing in for a person with a joystick."""
+        from ..demos.pendulum_mentor import PendulumMentor
+        return PendulumMentor(**kwargs)
 
+    def demo_options(self, seed: int) -> dict[str, Any]:
+        """Reset options of demonstration ``seed``: pendulum length and mass ±20 %, random start; a
+        quarter of the demos start with the pendulum falling from near upright (|θ| ≤ 0.6 rad, 2-5 rad/s),
+        as after a push, so the mentor also shows a swing-up that brakes a pendulum with too much energy
+        (from hanging alone the swing-up law never sees one, and after a push it let the pendulum spin).
+        Independently, 40 % start with the hand anywhere in the stroke (|x0| ≤ 0.33 m): after a push the
+        balance law runs the hand to the workspace limit, where a mentor who always starts centred never
+        showed a swing-up (the law commanded next to nothing there)."""
+        rng = np.random.default_rng([seed, 3])
+        opts: dict[str, Any] = {"randomize": True}
+        if rng.random() < FALLING_DEMOS:
+            opts.update(theta0=float(rng.uniform(-0.6, 0.6)),
+                        omega0=float(rng.choice([-1.0, 1.0]) * rng.uniform(2.0, 5.0)))
+        hand = np.random.default_rng([seed, 4])
+        if hand.random() < OFFSET_DEMOS:
+            opts["x0"] = float(hand.uniform(-OFFSET_RANGE, OFFSET_RANGE))
+        return opts
 
-def push(seed: int, size: float = PUSH_SIZE) -> dict[str, Any]:
-    """The experimenter's push for a trial: direction and timing vary with the seed."""
-    rng = np.random.default_rng([seed, 7])
-    return {"place": PUSH_PLACE, "after": float(PUSH_AFTER + rng.uniform(0.0, 1.0)),
-            "size": float(size * rng.choice([-1.0, 1.0]) * rng.uniform(0.9, 1.1)), "duration": PUSH_DURATION}
+    def demo_push(self, seed: int) -> dict[str, Any] | None:
+        """The experimenter's push in demonstration ``seed``, as in practice and evaluation (:meth:`push`),
+        in ``PUSHED_DEMOS`` of the demos: the mentor then shows how it swings the pendulum up again from
+        what the push leaves behind (the hand at the end of its stroke, the pendulum spinning)."""
+        if np.random.default_rng([seed, 5]).random() >= PUSHED_DEMOS:
+            return None
+        p = self.push(seed)
+        return {"tags": ("t1", "t3"), "after": p["after"], "size": p["size"], "duration": p["duration"]}
 
+    def trial_options(self, seed: int) -> dict[str, Any]:
+        """Reset options of practice and evaluation trials (same randomisation as the demos)."""
+        return {"randomize": True}
 
-def physical_success(trace: Trace) -> bool:
-    """The task done, judged on the pendulum itself: upright (|θ| < 0.5 rad) for 5 s without a break."""
-    if trace.outcome == "diverged":
+    def push(self, seed: int, size: float = PUSH_SIZE) -> dict[str, Any]:
+        """The experimenter's push for a trial: direction and timing vary with the seed."""
+        rng = np.random.default_rng([seed, 7])
+        return {"place": PUSH_PLACE, "after": float(PUSH_AFTER + rng.uniform(0.0, 1.0)),
+                "size": float(size * rng.choice([-1.0, 1.0]) * rng.uniform(0.9, 1.1)), "duration": PUSH_DURATION}
+
+    def physical_success(self, trace: Trace) -> bool:
+        """The task done, judged on the pendulum itself: upright (|θ| < 0.5 rad) for 5 s without a break."""
+        if trace.outcome == "diverged":
+            return False
+        up = np.abs(trace.value("theta")) < BALANCE_ANGLE
+        need = int(math.ceil(BALANCE_HOLD / trace.dt))
+        run = 0
+        for ok in up:
+            run = run + 1 if ok else 0
+            if run >= need:
+                return True
         return False
-    theta = np.abs(trace.value("theta"))
-    need = int(math.ceil(BALANCE_HOLD / trace.dt))
-    up = theta < BALANCE_ANGLE
-    run = 0
-    for ok in up:
-        run = run + 1 if ok else 0
-        if run >= need:
-            return True
-    return False
 
+    def robot_env_kwargs(self, inverse_model: bool) -> dict[str, Any]:
+        """With the learned inverse model the robot sends joint torques; without, the env's reference
+        operational-space controller turns the end-effector command into torques."""
+        return {"action_mode": "torque"} if inverse_model else {"action_mode": "ee"}
 
-# -- what the main job needs of this task (see multiform.job) ----------------------------------------
-TASK = "pendulum"
-DEMOS = 10                         # the main job's demonstrations: the fewest from which job seeds 0, 1 and 2
-                                   # all reach 95 % (pushed 90/100) learning from practice; see docs/measurements.md
-LEARN = True                       # the main job learns from practice (scenario c_keep)
-DESCRIPTION = ("A 6-axis arm (AUBO i5 kinematics, MuJoCo) learns to swing up and balance an inverted pendulum "
-               "from a scripted mentor's joystick demonstrations, labels and over-strict definition.")
-TARGET_SUCCESS_RATE = 0.95
-REPORT = {          # the report's words for this task's pictures (the paper's figure numbers)
-    "motion_figure": "Fig. 7",
-    "success_trial": "a successful trial of the learned skill: start (t0), swing-up repeated (t2), switch to balancing (t1)",
-    "recovery_trial": "pushed while balancing: the added transition backs up to swing-up, then balances again",
-}
-PLOT_VARIABLES = [("theta", "θ [rad]"), ("omega", "ω [rad/s]"), ("x", "x [m]"), ("xdot", "ẋ [m/s]")]
+    def mentor_takeover(self):
+        """The scripted mentor taking the joystick where a failed practice trial got stuck
+        (:mod:`multiform.adapt.takeover`): a demonstration on the trial's own pendulum, from the
+        pendulum's state and the hand's position at that tick (the arm at rest), for at most 20 s."""
+        import gymnasium as gym
 
+        from ..demos.record import record_episode
+        env = gym.make(self.ENV_ID, **self.DEMO_ENV_KWARGS)
+        limit = env.unwrapped.x_limit - 0.01
 
-def robot_env_kwargs(inverse_model: bool) -> dict[str, Any]:
-    """With the learned inverse model the robot sends joint torques; without, the env's reference
-    operational-space controller turns the end-effector command into torques."""
-    return {"action_mode": "torque"} if inverse_model else {"action_mode": "ee"}
+        def demonstrate(trace: Trace, tick: int):
+            state = {n: float(trace.value(n)[tick]) for n in ("theta", "omega", "x")}
+            options = {**(trace.options or {}), "theta0": state["theta"], "omega0": state["omega"],
+                       "x0": min(max(state["x"], -limit), limit)}
+            return record_episode(env, self.make_mentor(), seed=int(trace.seed), options=options, max_steps=25_000)
+        return demonstrate
 
+    def scenarios(self) -> list[Scenario]:
+        """The paper's two practice scenarios, in order (the second starts from the first's net), then
+        practice under the conditions the skill will meet, learning from its own graded experience
+        with the method's settings (the job gives it what is left of the practice budget)."""
+        return [
+            Scenario("a_strict", "(a) the mentor's over-strict t1: exactly upright, exactly at rest, hand exactly "
+                                 "centred", self.trial_options),
+            Scenario("b_push", "(b) pushes while balancing that the balance law cannot absorb", self.trial_options,
+                     perturb=self.pushed(1_000, 1.0)),
+            Scenario("c_keep", "(c) practice as evaluated (random starts, pushes on half the trials), learning from "
+                               "its own graded experience", self.trial_options, perturb=self.pushed(2_000, 0.5),
+                     learn=True, mentor=self.mentor_grader, takeover=self.mentor_takeover),
+        ]
 
-OWN_NOVELTY = 0.5                  # own samples join a law only where its mentor-only fit is unsure: posterior
-                                   # std >= 0.5 of the prior. 10 demos, seed 0: true of 5 % of the own samples
-                                   # of first swing-ups from hanging (the mentor showed plenty) and of 70 % of
-                                   # those of swing-ups after a push (the mentor showed three), where the law
-                                   # failed: it did not brake a pendulum spinning over the top
-MENTOR_EVERY = 3                   # the mentor grades every third trial of practice under evaluation conditions
-MENTOR_BUDGET = 10                 # and at most this many
-TAKEOVER_BUDGET = 10               # failed trials the mentor takes over: with its grades at most 20 trials of its
-                                   # time (job seed 2, 10 demos: 71.0 % without takeovers, 92.5 % with; 98.0 % since
-                                   # the judges pass over stays of a few milliseconds)
-FLOOR_EXAM = -4.0                  # at the end of practice the ways back's floor is examined at this logit (a state
-                                   # σ(-4) ≈ 1/50 as likely to be balanced as at the region's boundary) on the trials
-                                   # in which a way back fired, and kept only if it wins (adapt.practice)
+    def ablations(self, model, out, cfg) -> Iterator:
+        """The baselines on the same seeds and demonstrations, each in a model directory of its own made
+        from the trained model (laws, judges, inverse model), so practice can revise the model meanwhile.
+        Yielded as each is built, so the job can start one's trials while it fits the next."""
+        from ..adapt.evaluation import Variant
+        from .baselines import demo_only_model, same_laws_model
+        inv = cfg.inverse_model
+        as_written = same_laws_model(model, out / "baselines" / "as_written", self.SKILL)
+        yield Variant("definition + demonstration, no repair (the mentor's net as written)", str(as_written.path),
+                      use_inverse_model=inv, notes="t1 never holds: no way to balancing")
+        sound = same_laws_model(model, out / "baselines" / "sound_definition", self.SKILL_SOUND)
+        yield Variant("definition + demonstration, no repair (t1 written workable by hand)", str(sound.path),
+                      use_inverse_model=inv, notes="no way back after a push (no t7)")
+        demo_only = demo_only_model(model, out / "baselines" / "demonstration_only",
+                                    hold_condition="abs(theta) < 0.5", hold_time=BALANCE_HOLD, seed=cfg.seed)
+        yield Variant("demonstration only (one GP law on all demonstration data, no net)", str(demo_only.path),
+                      use_inverse_model=inv, use_judges=False,
+                      notes="one law for all phases, failed demonstrations included")
 
+    def train_inverse_model(self, model, seed: int = 0, log=print, laws_ready=lambda: None) -> dict[str, Any]:
+        """The auxiliary inverse model from the arm's own babbling (:mod:`.arm_babbling`), saved into
+        the model directory, with its tracking error beside the reference controller's. The babbling
+        rounds need no law; ``laws_ready()`` is called before the exercises use the learned laws."""
+        import gymnasium as gym
 
-def mentor_takeover():
-    """The scripted mentor taking the joystick where a failed practice trial got stuck
-    (:mod:`multiform.adapt.takeover`): a demonstration on the trial's own pendulum, from the
-    pendulum's state and the hand's position at that tick (the arm at rest), for at most 20 s."""
-    import gymnasium as gym
+        import multiform.envs  # noqa: F401
+        from ..envs.osc import ReferenceController
+        from .arm_babbling import tracking_error, train_inverse
+        make = lambda: gym.make(self.ENV_ID, action_mode="torque")  # noqa: E731
 
-    from ..demos.record import record_episode
-    env = gym.make(ENV_ID, **DEMO_ENV_KWARGS)
-    limit = env.unwrapped.x_limit - 0.01
+        def exercises(rng):
+            laws_ready()
+            return _exercises(model, rng)
 
-    def demonstrate(trace: Trace, tick: int):
-        state = {n: float(trace.value(n)[tick]) for n in ("theta", "omega", "x")}
-        options = {**(trace.options or {}), "theta0": state["theta"], "omega0": state["omega"],
-                   "x0": min(max(state["x"], -limit), limit)}
-        return record_episode(env, make_mentor(), seed=int(trace.seed), options=options, max_steps=25_000)
-    return demonstrate
-
-
-def mentor_grader():
-    """The scripted mentor watching a practice trial: one verdict per stay, from the trace alone."""
-    mentor = make_mentor()
-    return lambda episode, apn: mentor.grade_trial(episode)
-
-
-def scenarios() -> list[dict[str, Any]]:
-    """The paper's two practice scenarios, in order (the second starts from the first's net), then
-    practice under the conditions the skill will meet, learning from its own graded experience
-    (the job gives it what is left of the practice budget)."""
-    return [
-        {"name": "a_strict", "title": "(a) the mentor's over-strict t1: exactly upright, exactly at rest, hand exactly centred",
-         "options": trial_options, "config": {"failures_in_a_row": 3, "success_streak": 5}},
-        {"name": "b_push", "title": "(b) pushes while balancing that the balance law cannot absorb",
-         "options": trial_options, "perturb": lambda k: _push_in_place(1_000 + k),
-         "config": {"failures_in_a_row": 3, "success_streak": 5}, "seed": 1},
-        {"name": "c_keep", "title": "(c) practice as evaluated (random starts, pushes on half the trials), "
-                                    "learning from its own graded experience",
-         "options": trial_options, "perturb": lambda k: _push_in_place(2_000 + k) if k % 4 < 2 else None,
-         "mentor": mentor_grader, "takeover": mentor_takeover, "learn": True,
-         "config": {"failures_in_a_row": 3, "success_streak": 10**6, "learn": True, "explore": 0.5,
-                    "explore_every": 2, "refit_every": 10, "mentor_every": MENTOR_EVERY,
-                    "mentor_budget": MENTOR_BUDGET, "target_rate": TARGET_SUCCESS_RATE, "target_window": 20,
-                    "revert_window": 10, "exam": True, "novelty": OWN_NOVELTY, "takeover_budget": TAKEOVER_BUDGET,
-                    "floor_exam": FLOOR_EXAM}, "seed": 2},
-    ]
-
-
-def _push_in_place(seed: int):
-    from ..adapt.perturb import PushInPlace
-    return PushInPlace(**push(seed))
-
-
-def evaluation_specs(n: int, seed: int, push_fraction: float) -> list:
-    """``n`` evaluation trials: randomised start, length and mass ±20 %; every trial whose index falls
-    in ``push_fraction`` is pushed while balancing."""
-    from ..adapt.evaluation import TrialSpec
-    specs = []
-    every = 0 if push_fraction <= 0 else max(1, int(round(1.0 / push_fraction)))
-    for i in range(n):
-        s = 50_000_000 + seed * 100_000 + i
-        specs.append(TrialSpec(seed=s, options=trial_options(s), push=push(s) if every and i % every == 0 else None))
-    return specs
-
-
-ABLATIONS_AFTER_PRACTICE = False   # the baselines are copies of the trained model: the job runs them while it practises
-
-
-def ablations(model, out, cfg) -> Iterator:
-    """The baselines on the same seeds and demonstrations, each in a model directory of its own made
-    from the trained model (laws, judges, inverse model), so practice can revise the model meanwhile.
-    Yielded as each is built, so the job can start one's trials while it fits the next."""
-    from ..adapt.evaluation import Variant
-    from .baselines import demo_only_model, same_laws_model
-    inv = cfg.inverse_model
-    as_written = same_laws_model(model, out / "baselines" / "as_written", SKILL)
-    yield Variant("definition + demonstration, no repair (the mentor's net as written)", str(as_written.path),
-                  use_inverse_model=inv, notes="t1 never holds: no way to balancing")
-    sound = same_laws_model(model, out / "baselines" / "sound_definition", SKILL_SOUND)
-    yield Variant("definition + demonstration, no repair (t1 written workable by hand)", str(sound.path),
-                  use_inverse_model=inv, notes="no way back after a push (no t7)")
-    demo_only = demo_only_model(model, out / "baselines" / "demonstration_only", hold_condition="abs(theta) < 0.5",
-                                hold_time=BALANCE_HOLD, seed=cfg.seed)
-    yield Variant("demonstration only (one GP law on all demonstration data, no net)", str(demo_only.path),
-                  use_inverse_model=inv, use_judges=False, notes="one law for all phases, failed demonstrations included")
+        inv, info = train_inverse(make, seed=seed, exercises=exercises, log=log)
+        model.save_inverse_model(inv)
+        env = make()
+        try:
+            ref = tracking_error(env, ReferenceController(), 10.0, seed=seed + 77)
+            lrn = tracking_error(env, inv, 10.0, seed=seed + 77)
+        finally:
+            env.close()
+        info["tracking"] = {"learned": lrn, "reference": ref,
+                            "ratio": lrn["velocity_rms"] / max(ref["velocity_rms"], 1e-9)}
+        log(f"  tracking held-out commands: learned {lrn['velocity_rms']:.4f} m/s RMS, reference "
+            f"{ref['velocity_rms']:.4f} m/s RMS (ratio {info['tracking']['ratio']:.2f})")
+        return info
 
 
 def _exercises(model, rng) -> list:
@@ -242,32 +214,3 @@ def _exercises(model, rng) -> list:
         if law == "balance":
             options["theta0"] = float(rng.uniform(-0.3, 0.3))
     return out
-
-
-def train_inverse_model(model, seed: int = 0, log=print, laws_ready=lambda: None) -> dict[str, Any]:
-    """The auxiliary inverse model from the arm's own babbling (:mod:`.arm_babbling`), saved into
-    the model directory, with its tracking error beside the reference controller's. The babbling
-    rounds need no law; ``laws_ready()`` is called before the exercises use the learned laws."""
-    import gymnasium as gym
-
-    import multiform.envs  # noqa: F401
-    from ..envs.osc import ReferenceController
-    from .arm_babbling import tracking_error, train_inverse
-    make = lambda: gym.make(ENV_ID, action_mode="torque")  # noqa: E731
-    def exercises(rng):
-        laws_ready()
-        return _exercises(model, rng)
-
-    inv, info = train_inverse(make, seed=seed, exercises=exercises, log=log)
-    model.save_inverse_model(inv)
-    env = make()
-    try:
-        ref = tracking_error(env, ReferenceController(), 10.0, seed=seed + 77)
-        lrn = tracking_error(env, inv, 10.0, seed=seed + 77)
-    finally:
-        env.close()
-    info["tracking"] = {"learned": lrn, "reference": ref,
-                        "ratio": lrn["velocity_rms"] / max(ref["velocity_rms"], 1e-9)}
-    log(f"  tracking held-out commands: learned {lrn['velocity_rms']:.4f} m/s RMS, reference "
-        f"{ref['velocity_rms']:.4f} m/s RMS (ratio {info['tracking']['ratio']:.2f})")
-    return info

@@ -22,10 +22,10 @@ trials reaches ``target_rate``. A refit that passed its exam gives the repair ca
 before it a new chance: they were judged with the old laws.
 """
 
-from .config import PracticeConfig
+from .config import REPAIR_ONLY, PracticeConfig
 from .loop import Practice
 from .state import (MentorGrade, PracticeState, RevisionRecord, Takeover, TrialRecord, Trying, Watch,
                     state_from_json, state_to_json)
 
-__all__ = ["MentorGrade", "Practice", "PracticeConfig", "PracticeState", "RevisionRecord", "Takeover", "TrialRecord",
+__all__ = ["REPAIR_ONLY", "MentorGrade", "Practice", "PracticeConfig", "PracticeState", "RevisionRecord", "Takeover", "TrialRecord",
            "Trying", "Watch", "state_from_json", "state_to_json"]

@@ -17,41 +17,54 @@ EXPLORE_TAU = 0.1       # s: how smooth an exploring law's deviation is (:class:
 class PracticeConfig:
     """When practice counts as constant failure, what it learns, and when it is done.
 
+    The defaults are the method's settings, used by every bundled task: practice that repairs the
+    net and learns from its own graded experience (``learn``), exploring on every other trial,
+    refitting every ten trials where the plain trials fall short of ``target_rate``, each revision
+    examined on the same trials replayed (``exam``), the mentor's time (``mentor_trials``) split
+    between grading trials and taking over failed ones, and the ways back's floor examined at the
+    end. :data:`REPAIR_ONLY` is practice that only repairs (the paper's two scenarios).
+
     Constant failure: ``failures_in_a_row`` failed trials in a row, or (if ``window`` > 0) at least
     ``failure_rate`` of the last ``window`` trials since the last repair. Done: ``success_streak``
-    successes in a row, the target rate (``target_rate`` over ``target_window`` plain trials), or
-    ``max_trials`` trials. The learning options are described in :mod:`multiform.adapt.practice`.
+    successes in a row (0: not a reason to stop), the target rate (``target_rate`` over
+    ``target_window`` plain trials of the net as it is), or ``max_trials`` trials. The learning
+    options are described in :mod:`multiform.adapt.practice`.
     """
 
     failures_in_a_row: int = 3
     window: int = 0
     failure_rate: float = 0.8
-    success_streak: int = 5
-    max_trials: int = 40
+    success_streak: int = 0
+    max_trials: int = 100
     seed: int = 0
-    learn: bool = False
+    learn: bool = True
     margin: float = DEFAULT_MARGIN
-    explore: float = 0.0
+    explore: float = 0.5                # an exploring law's deviation, in units of the law's own noise level
     explore_every: int = 2
     refit_every: int = 10
     refit_min_segments: int = 5
-    mentor_every: int = 0
-    mentor_budget: int = 0
-    target_rate: float = 0.0
+    mentor_every: int = 3               # the mentor grades every third trial ...
+    mentor_trials: int = 20             # ... and gives at most this many trials of its time, half of them
+                                        # taking over failed trials where the task lets it
+    target_rate: float = 0.95
     target_window: int = 20
     shortfall_after: int = 0
     revert_window: int = 10
-    exam: bool = False
-    novelty: float = 0.0
-    takeover_budget: int = 0
-    floor_exam: float = 0.0
+    exam: bool = True
+    novelty: float = 0.5                # own samples join a law only where its mentor-only fit is this unsure
+    floor_exam: float = -4.0            # a state σ(-4) ≈ 1/50 as likely to be in its place as at its boundary
     check_demonstrations: bool = True
 
+    def budgets(self, takes_over: bool) -> tuple[int, int]:
+        """(trials the mentor grades, failed trials it takes over) of ``mentor_trials``: half and
+        half where it can take over (``takes_over``), else all graded."""
+        takeovers = self.mentor_trials // 2 if takes_over else 0
+        return self.mentor_trials - takeovers, takeovers
+
     def __post_init__(self) -> None:
-        counts = {"failures_in_a_row": 1, "window": 0, "success_streak": 1, "max_trials": 1, "seed": 0,
+        counts = {"failures_in_a_row": 1, "window": 0, "success_streak": 0, "max_trials": 1, "seed": 0,
                   "explore_every": 0, "refit_every": 1, "refit_min_segments": 1, "mentor_every": 0,
-                  "mentor_budget": 0, "takeover_budget": 0, "target_window": 1, "shortfall_after": 0,
-                  "revert_window": 1}
+                  "mentor_trials": 0, "target_window": 1, "shortfall_after": 0, "revert_window": 1}
         for name, low in counts.items():
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= 1_000_000:
@@ -68,6 +81,10 @@ class PracticeConfig:
             if not isinstance(getattr(self, name), bool):
                 raise InvalidInput(f"must be true or false, got {getattr(self, name)!r}", element=name)
 
+    def stops_on_streak(self, successes: int) -> bool:
+        """``successes`` in a row end practice."""
+        return 0 < self.success_streak <= successes
+
     def explores(self, k: int) -> bool:
         """Trial ``k`` explores (every ``explore_every``-th trial, when exploring at all)."""
         return self.explore > 0 and self.explore_every > 0 and k % self.explore_every == self.explore_every - 1
@@ -81,3 +98,9 @@ class PracticeConfig:
         if self.exam:
             return self.revert_window
         return self.revert_window * (self.explore_every if self.explore > 0 and self.explore_every > 1 else 1)
+
+
+REPAIR_ONLY = {"learn": False, "explore": 0.0, "target_rate": 0.0, "exam": False, "success_streak": 5,
+               "floor_exam": 0.0}
+"""The fields that make :class:`PracticeConfig` practice that only repairs: done after five successes
+in a row."""

@@ -3,11 +3,12 @@ mentor's grades of some trials and its takeovers of failed ones, and refits of t
 
 * Own segments: the stays a trial's judges grade successful with a margin join the laws' own
   training data (:mod:`..experience`).
-* The mentor grades every ``mentor_every``-th trial, up to ``mentor_budget`` trials, from the
-  trial's trace alone (each stay the judges graded); the labels revise the judges, and each label
-  that contradicts the robot's own grade is counted.
-* The mentor takes over failed trials, up to ``takeover_budget`` (:mod:`..takeover`): a
-  demonstration from where the robot knew least, learned from at the next refit.
+* The mentor grades every ``mentor_every``-th trial from the trial's trace alone (each stay the
+  judges graded); the labels revise the judges, and each label that contradicts the robot's own
+  grade is counted.
+* The mentor takes over failed trials (:mod:`..takeover`): a demonstration from where the robot
+  knew least, learned from at the next refit. Grades and takeovers share the mentor's time,
+  ``mentor_trials`` (:meth:`~.config.PracticeConfig.budgets`).
 * Every ``refit_every`` trials, while the plain trials show the skill falls short of
   ``target_rate`` (read off at least ``shortfall_after`` plain trials of the net as it is now),
   each law with new own data is refitted from the mentor's and its own data (a ``refit_law``
@@ -50,6 +51,7 @@ class Learning:
                  takeover: TakeoverFn | None = None):
         self.ctx, self.watch = ctx, watch
         self.mentor, self.takeover = mentor, takeover
+        self.mentor_budget, self.takeover_budget = ctx.config.budgets(takeover is not None)
 
     # -- after each trial --------------------------------------------------------------------------
     def learn_from(self, state: PracticeState, record: TrialRecord, trace: Trace, grade: TrialGrade,
@@ -61,12 +63,12 @@ class Learning:
         verdicts: dict[tuple[int, int], bool] = {}
         graded = {g.trial for g in state.mentor_graded}
         if (self.mentor is not None and cfg.mentor_every > 0 and k % cfg.mentor_every == cfg.mentor_every - 1
-                and len(graded) < cfg.mentor_budget and k not in graded):
+                and len(graded) < self.mentor_budget and k not in graded):
             verdicts, record.mentor = self.mentor_grades(k, trace, grade, apn)
             state.mentor_graded.append(record.mentor)
         taken = {t.trial for t in state.takeovers}
         if (self.takeover is not None and not record.success and is_evidence(trace.outcome) and k not in taken
-                and len(taken) < cfg.takeover_budget):
+                and len(taken) < self.takeover_budget):
             record.takeover = self._take_over(k, trace, apn)
             state.takeovers.append(record.takeover)
         own = select_segments(apn, trace, grade, source, self.ctx.name, k, cfg.margin, verdicts)
@@ -152,7 +154,7 @@ class Learning:
             return
         apn = model.apn
         segments = ctx.experience.segments()
-        takeovers = ctx.experience.takeovers() if cfg.takeover_budget else {}
+        takeovers = ctx.experience.takeovers() if self.takeover_budget else {}
         made = []
         for law in apn.laws:
             mine = [s for s in segments if law in s.laws]

@@ -62,18 +62,6 @@ class Practice:
         self.learning = Learning(self.ctx, self.watch, mentor, takeover)
         self.floors = FloorExam(self.ctx, self.watch)
 
-    @classmethod
-    def for_scenario(cls, model: SkillModel, folder: str | Path, scenario: Mapping[str, Any], max_trials: int,
-                     seed: int = 0, observe: Observe | None = None) -> Practice:
-        """Practice through one of a task's scenarios (``Task.scenarios()``: name, options, perturb,
-        config, seed offset, and the mentor's grader and takeover factories where it learns)."""
-        sc = scenario
-        cfg = PracticeConfig(max_trials=max_trials, seed=seed + sc.get("seed", 0), **sc.get("config", {}))
-        mentor = sc["mentor"]() if sc.get("mentor") else None
-        takeover = sc["takeover"]() if sc.get("takeover") and cfg.takeover_budget else None
-        return cls(model, folder, cfg, options=sc["options"], perturb=sc.get("perturb"), name=sc["name"],
-                   mentor=mentor, observe=observe, takeover=takeover)
-
     # -- state -------------------------------------------------------------------------------------
     @property
     def state_path(self) -> Path:
@@ -213,7 +201,7 @@ class Practice:
             self.watch.check(state)
         if state.done:                  # the floor exam that ended practice
             return
-        if succ >= cfg.success_streak:
+        if cfg.stops_on_streak(succ):
             state.done, state.stop_reason = True, f"{succ} successes in a row"
         elif self.reached_target(state):
             reason = (f"own success rate {state.plain_rate(cfg.target_window):.2f} over the last "
