@@ -21,6 +21,7 @@ from multiform.demos.dataset import write_dataset
 from multiform.demos.record import record_many
 from multiform.job import train_model
 from multiform.model import SkillModel
+from multiform.petri.skillfile import resolve_skill
 from multiform.task import load_task
 task = load_task("pendulum")
 
@@ -322,7 +323,7 @@ def test_there_are_at_least_sixty_cases():
 
 def test_default_outputs_stay_in_the_current_folder(work, capsys):
     """A net named like a path (from a file anyone may have written) lands as a base name here."""
-    text = (Path(task.__file__).parent.parent / "skills" / "pendulum.yaml").read_text()
+    text = resolve_skill("pendulum").read_text()
     evil = skill_file(work, text.replace("skill: pendulum", "skill: ../../../evil/net", 1), "evil.yaml")
     assert run(["net", "export", evil]) == 0
     assert run(["draw", evil]) == 0

@@ -15,12 +15,8 @@ from multiform.petri.revision import set_lambda
 
 @pytest.fixture(scope="module")
 def car(tmp_path_factory, mountain_car_class):
-    class Learning(mountain_car_class):
-        def scenarios(self):
-            return [*super().scenarios(), {"name": "keep", "title": "keep practising", "learn": True,
-                                          "options": self.trial_options, "config": {"learn": True}}]
-
-    task = Learning()
+    task = mountain_car_class()             # the Task defaults: a repair scenario, then one that learns
+    assert [s.learn for s in task.scenarios()] == [False, True]
     out = tmp_path_factory.mktemp("car")
     demos = multiform.record(task, out / "demos.h5", demos=6)
     model = multiform.train(task.SKILL, demos, out / "model", task=task, log=lambda s: None)
