@@ -12,7 +12,7 @@ import yaml
 
 from multiform.adapt.compare import compare_with_mentor
 from multiform.adapt.diagnosis import diagnose
-from multiform.adapt.mentor import ConditionFit, MentorEvidence, mentor_evidence
+from multiform.adapt.mentor import mentor_evidence
 from multiform.adapt.practice import Practice, PracticeConfig, PracticeState, RevisionRecord, TrialRecord, Trying
 from multiform.adapt.repair import candidates, repair
 from multiform.demos.episode import Episode, SegmentLabel

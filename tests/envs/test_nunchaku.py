@@ -211,7 +211,6 @@ def test_stable_over_1000_randomised_trials():
 def test_non_finite_or_absurd_reset_options_are_refused(options):
     import gymnasium as gym
 
-    import multiform.envs  # noqa: F401
     env = gym.make("multiform/Nunchaku-v0")
     with pytest.raises(ValueError):
         env.reset(seed=0, options=options)

@@ -35,10 +35,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
 
 from ..petri.analysis import success_reachable
-from ..petri.guard import parse_guard, to_text
+from ..petri.guard import to_text
+from ..petri.guard_tree import GREATER, atoms, normal, replace_at, subtree, value_at, variables, with_constant
 from ..petri.net import APN, is_clock
 from ..runtime.trace import Trace
 from .mentor import MentorEvidence
@@ -50,7 +50,6 @@ SLACK = 2.0             # a limit moved to the mentor's longest successful stay 
                         # maneuvers run slower than the mentor's (nunchaku swing-up, 1.25: 87/100 against the sound 97/100)
 LAW_RATIO = 0.7         # another law explains a transition's segments when its error is under this share
 MIN_USES = 3            # the mentor's successful uses needed to judge a transition's law or put one back
-_GT = (operator.gt, operator.ge)
 _LT = (operator.lt, operator.le)
 
 
@@ -214,48 +213,10 @@ def _strictness(apn: APN, failed: list[Trace], succeeded: list[list[str]], mento
     return out
 
 
-def _atoms(tree: tuple, path: tuple = ()) -> list[tuple[tuple, tuple]]:
-    """(path, comparison) for each ``expression op constant`` comparison reachable through and/or."""
-    kind = tree[0]
-    if kind in ("and", "or"):
-        return [a for i, x in enumerate(tree[1]) for a in _atoms(x, path + (i,))]
-    if kind == "cmp" and len(tree[1]) == 1 and (tree[2][0][0] == "const") != (tree[2][1][0] == "const"):
-        return [(path, tree)]
-    return []
 
 
-def _normal(atom: tuple) -> tuple[tuple, Any, float]:
-    """An atom as (expression, operator, constant) with the constant on the right."""
-    op, (a, b) = atom[1][0], atom[2]
-    if a[0] == "const":
-        flip = {operator.lt: operator.gt, operator.le: operator.ge, operator.gt: operator.lt,
-                operator.ge: operator.le}.get(op, op)
-        return b, flip, float(a[1])
-    return a, op, float(b[1])
 
 
-def _replace(tree: tuple, path: tuple, atom: tuple) -> tuple:
-    if not path:
-        return atom
-    kind, items = tree[0], list(tree[1])
-    items[path[0]] = _replace(items[path[0]], path[1:], atom)
-    return (kind, items)
-
-
-def _with_constant(atom: tuple, value: float) -> tuple:
-    op, (a, b) = atom[1], atom[2]
-    return ("cmp", op, [("const", value), b] if a[0] == "const" else [a, ("const", value)])
-
-
-def _eval(tree: tuple, env: dict[str, float]) -> float:
-    """A guard subtree's value at one state."""
-    g = parse_guard(to_text(tree))
-    return float(g.evaluate_arrays({k: np.array([env[k]]) for k in g.variables})[0])
-
-
-def _vars(tree: tuple) -> set[str]:
-    from .mentor import _tree_variables
-    return _tree_variables(tree)
 
 
 def _limits(apn: APN, failed: list[Trace], succeeded: list[list[str]], mentor: MentorEvidence) -> list[Finding]:
@@ -276,10 +237,10 @@ def _limits(apn: APN, failed: list[Trace], succeeded: list[list[str]], mentor: M
         stay = _stay(tr, place, last.tick)
         mentor_stay = mentor.stay_seconds.get(place)
         env = _values_at(apn, tr, last.tick, place)
-        for path, atom in _atoms(g.tree):
-            expr, op, c = _normal(atom)
-            names = _vars(expr)
-            if not names or _eval(atom, env) <= 0:
+        for path, atom in atoms(g.tree):
+            expr, op, c = normal(atom)
+            names = variables(expr)
+            if not names or value_at(atom, env) <= 0:
                 continue
             moved = _moved_limit(apn, place, mentor, atom, expr, op, c, names, env, stay, mentor_stay)
             if moved is None:
@@ -289,7 +250,7 @@ def _limits(apn: APN, failed: list[Trace], succeeded: list[list[str]], mentor: M
             new = float(f"{new:.4g}")
             best = moves.setdefault(f.id, {})
             old = best.get(path)
-            best[path] = new if old is None else (max(old, new) if op in _GT else min(old, new))
+            best[path] = new if old is None else (max(old, new) if op in GREATER else min(old, new))
     out = []
     for fid, changes in moves.items():
         text = moved_condition(apn, fid, changes)
@@ -305,7 +266,7 @@ def moved_condition(apn: APN, tid: str, changes: dict[tuple, float]) -> str:
     """``tid``'s guard with the constant of the atom at each path of ``changes`` set to its value."""
     tree = apn.transition(tid).condition.guard.tree
     for path, value in changes.items():
-        tree = _replace(tree, path, _with_constant(_get(tree, path), value))
+        tree = replace_at(tree, path, with_constant(subtree(tree, path), value))
     return to_text(tree)
 
 
@@ -317,7 +278,7 @@ def _moved_limit(apn: APN, place: str, mentor: MentorEvidence, atom: tuple, expr
     longest stay over the robot's, a state bound moved beyond the mentor's range. An atom that mixes
     clocks and state is left alone."""
     if all(is_clock(n) for n in names):
-        if mentor_stay is None or op not in _GT or stay <= 0 or stay >= mentor_stay:
+        if mentor_stay is None or op not in GREATER or stay <= 0 or stay >= mentor_stay:
             return None
         new = c * SLACK * mentor_stay / stay
         if any(n.startswith("fires_") for n in names):
@@ -326,7 +287,7 @@ def _moved_limit(apn: APN, place: str, mentor: MentorEvidence, atom: tuple, expr
                      "mentor_longest_successful_stay_s": round(mentor_stay, 3)}
     if any(is_clock(n) for n in names):
         return None
-    v = _eval(expr, env)
+    v = value_at(expr, env)
     moved = moved_state_bound(apn, place, mentor, expr, op, v)
     if moved is None:
         return None
@@ -344,17 +305,12 @@ def moved_state_bound(apn: APN, place: str, mentor: MentorEvidence, expr: tuple,
     if rng is None or not math.isfinite(v):
         return None
     lo, hi = rng
-    if op in _GT and v <= hi:
+    if op in GREATER and v <= hi:
         return hi + 0.1 * max(abs(hi), 1e-3), rng
     if op in _LT and v >= lo:
         return lo - 0.1 * max(abs(lo), 1e-3), rng
     return None
 
-
-def _get(tree: tuple, path: tuple) -> tuple:
-    for i in path:
-        tree = tree[1][i]
-    return tree
 
 
 def _late_stops(apn: APN, failed: list[Trace], succeeded: list[list[str]], mentor: MentorEvidence) -> list[Finding]:
@@ -373,12 +329,12 @@ def _late_stops(apn: APN, failed: list[Trace], succeeded: list[list[str]], mento
         if 2 * len(waited) < len(failed):
             continue
         tree, changed = g.tree, []
-        for path, atom in _atoms(g.tree):
-            expr, op, c = _normal(atom)
-            names = _vars(expr)
+        for path, atom in atoms(g.tree):
+            expr, op, c = normal(atom)
+            names = variables(expr)
             if names and all(is_clock(n) for n in names) and not any(n.startswith("fires_") for n in names) \
-                    and op in _GT and c > mentor_stay:
-                tree = _replace(tree, path, _with_constant(atom, float(f"{mentor_stay:.4g}")))
+                    and op in GREATER and c > mentor_stay:
+                tree = replace_at(tree, path, with_constant(atom, float(f"{mentor_stay:.4g}")))
                 changed.append(to_text(atom))
         if not changed:
             continue

@@ -36,7 +36,8 @@ import numpy as np
 from ..demos.episode import Episode
 from ..learn.condition import switch_windows
 from ..learn.views import law_data, stays, success_mask, switch_data, value_matrix
-from ..petri.net import APN, is_clock
+from ..petri.guard_tree import variables
+from ..petri.net import APN
 
 MOMENT = 0.1          # s after a switch in which the mentor's switch counts as one moment
 
@@ -138,31 +139,6 @@ class MentorEvidence:
         return (lo, hi) if seen else None
 
 
-def _tree_variables(tree: tuple) -> set[str]:
-    kind = tree[0]
-    if kind == "var":
-        return {tree[1]}
-    if kind == "const":
-        return set()
-    if kind in ("neg", "not"):
-        return _tree_variables(tree[1])
-    if kind == "bin":
-        return _tree_variables(tree[2]) | _tree_variables(tree[3])
-    if kind in ("cmp", "and", "or"):
-        items = tree[2] if kind == "cmp" else tree[1]
-        return set().union(*(_tree_variables(x) for x in items))
-    if kind == "call":
-        return set().union(set(), *(_tree_variables(x) for x in tree[2]))
-    return set()
-
-
-def _is_repeat(apn: APN, tid: str) -> bool:
-    """A self-loop that reruns the maneuver its place already runs (a repeat, not a switch): the
-    mentor's tags show a maneuver once however often the robot repeats it, so its switches say
-    nothing about when to repeat."""
-    from .repair import place_law
-    t = apn.transition(tid)
-    return set(t.outputs) == set(t.inputs) and all(place_law(apn, p) in (None, t.law) for p in t.inputs)
 
 
 def _state_part(g: Any, state: set[str]) -> Any:
@@ -175,7 +151,7 @@ def _state_part(g: Any, state: set[str]) -> Any:
         return g
     if g.tree[0] != "and":
         return None
-    keep = [x for x in g.tree[1] if _tree_variables(x) and _tree_variables(x) <= state]
+    keep = [x for x in g.tree[1] if variables(x) and variables(x) <= state]
     return parse_guard(" and ".join(f"({to_text(x)})" for x in keep)) if keep else None
 
 
@@ -202,7 +178,7 @@ def mentor_evidence(apn: APN, episodes: Sequence[Episode], min_switches: int = 3
     ev.endings = _endings(apn, episodes)
     state = set(apn.variables) | set(apn.derived)
     for t in apn.transitions:
-        if _is_repeat(apn, t.id) or any(apn.place(p).final for p in t.outputs):
+        if apn.is_repeat(t.id) or any(apn.place(p).final for p in t.outputs):
             continue                # repeats and stop/give-up rules: held against timing, not switches
         g = _state_part(t.condition.guard, state)
         if g is None or ev.took_success.get(t.id, 0) < min_switches:

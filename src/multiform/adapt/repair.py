@@ -41,7 +41,7 @@ are produced and saved through a :class:`Learners` before the revision is record
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -88,13 +88,6 @@ def _only_way(apn: APN, tid: str) -> bool:
     return not any(o.id != tid and o.preset == t.preset and set(o.outputs) == set(t.outputs)
                    for o in apn.transitions)
 
-
-def place_law(apn: APN, place: str) -> str | None:
-    """The law that runs while ``place`` holds the token: the commonest law of transitions into it."""
-    laws = Counter(t.law for t in apn.transitions if place in t.outputs and t.law and place not in t.inputs)
-    if not laws:
-        laws = Counter(t.law for t in apn.transitions if place in t.outputs and t.law)
-    return laws.most_common(1)[0][0] if laws else None
 
 
 def adjust_lambda(apn: APN, d: Diagnosis, factor: float = 0.5, exhausted: frozenset[str] = frozenset()
@@ -151,7 +144,7 @@ def add_transition_back(apn: APN, d: Diagnosis, learners: Learners, min_exits: i
             break
         if any(set(t.inputs) == {src} and dst in t.outputs for t in apn.transitions):
             continue
-        law = place_law(apn, dst)
+        law = apn.place_law(dst)
         name, evidence = learners.region_condition(apn, dst, src)
         tid = apn.fresh_id("t")
         exits = [e for e in d.exits if (e.place, e.best) == (src, dst)]
@@ -198,7 +191,7 @@ def add_new_place(apn: APN, d: Diagnosis, learners: Learners, min_exits: int = 2
     name_out, ev_out = learners.outside_condition(new, src, [e.state for e in examples])
     t_in = new.fresh_id("t")
     spec_in = {"label": f"leave {src}", "in": [src], "out": [pid], "condition": {"model": name_out}}
-    law = place_law(new, nearest) if nearest else None
+    law = new.place_law(nearest) if nearest else None
     if law:
         spec_in["law"] = law
     new, r2 = add_transition(new, t_in, spec_in, f"reach the new place {pid} when the state leaves every region", ev_out)

@@ -30,8 +30,9 @@ from ..learn.views import stays, success_mask, value_matrix
 from ..petri.guard import parse_guard, to_text
 from ..petri.net import APN, is_clock
 from ..petri.revision import set_condition
-from .compare import _GT, SLACK, Finding, _atoms, _eval, _normal, _vars, moved_condition, moved_state_bound
-from .mentor import MentorEvidence, _is_repeat
+from ..petri.guard_tree import GREATER, atoms, normal, value_at, variables
+from .compare import SLACK, Finding, moved_condition, moved_state_bound
+from .mentor import MentorEvidence
 
 PASSES = 5            # replays after moving limits: a rule's other atoms may hold later in a stay
 MIN_ENDED = 3         # demonstrations a rule must have ended to be moved (one odd one is not the mentor's timing)
@@ -89,9 +90,9 @@ def _one_pass(apn: APN, mentor: MentorEvidence, slower: float
     notes: dict[str, list[dict[str, Any]]] = {}
     for place, t, k, env, i in fired:
         live = _live(t.condition.guard.tree, env)
-        for path, atom in _atoms(t.condition.guard.tree):
-            expr, op, c = _normal(atom)
-            names = _vars(expr)
+        for path, atom in atoms(t.condition.guard.tree):
+            expr, op, c = normal(atom)
+            names = variables(expr)
             if not names or path not in live:
                 continue
             if all(is_clock(n) for n in names):
@@ -99,12 +100,12 @@ def _one_pass(apn: APN, mentor: MentorEvidence, slower: float
             elif any(is_clock(n) for n in names):
                 new = None                  # a clock mixed with state: what to move is unclear
             else:
-                bound = moved_state_bound(apn, place, mentor, expr, op, _eval(expr, env))
+                bound = moved_state_bound(apn, place, mentor, expr, op, value_at(expr, env))
                 new = None if bound is None else float(f"{bound[0]:.4g}")
             if new is None:
                 continue
             best = changes.setdefault(t.id, {})
-            best[path] = new if path not in best else (max(best[path], new) if op in _GT else min(best[path], new))
+            best[path] = new if path not in best else (max(best[path], new) if op in GREATER else min(best[path], new))
             notes.setdefault(t.id, []).append({"demonstration": i, "place": place, "atom": to_text(atom),
                                                "at_s_of_the_mentors_stay": round(k * mentor.episodes[i].dt, 3)})
     return changes, notes
@@ -113,7 +114,7 @@ def _one_pass(apn: APN, mentor: MentorEvidence, slower: float
 def _live(tree: tuple, env: dict[str, float], path: tuple = ()) -> set[tuple]:
     """Paths of the atoms that made ``tree`` hold at ``env``: atoms that hold, every ``and`` above them
     holding too (an atom holding in a conjunction that failed ended nothing)."""
-    if _eval(tree, env) <= 0:
+    if value_at(tree, env) <= 0:
         return set()
     if tree[0] in ("and", "or"):
         return set().union(*(_live(x, env, path + (i,)) for i, x in enumerate(tree[1])))
@@ -123,7 +124,7 @@ def _live(tree: tuple, env: dict[str, float], path: tuple = ()) -> set[tuple]:
 def _moved_clock(expr: tuple, op: Any, stays_cols: Sequence[dict[str, np.ndarray]]) -> float | None:
     """A clock bound past the largest value ``expr`` reached over the replayed stays (a count: the next
     whole number), or None if the atom is not an upper limit on a clock."""
-    if op not in _GT:
+    if op not in GREATER:
         return None
     g = parse_guard(to_text(expr))
     top = max(float(np.nanmax(g.evaluate_arrays(_columns(g, cols)))) for cols in stays_cols)
@@ -153,7 +154,7 @@ def _replay(apn: APN, ep: Episode, slower: float) -> list[tuple[str, dict[str, n
     ok = success_mask(ep)
     dt = ep.dt * slower
     fires = {t: 0 for t in apn.transition_ids}
-    repeat = {t for t in apn.transition_ids if _is_repeat(apn, t)}
+    repeat = {t for t in apn.transition_ids if apn.is_repeat(t)}
     segs = ep.segments()
     out = []
     for s, e, place in stays(apn, ep.transitions):

@@ -8,22 +8,19 @@ embed a GP (the inverse model) store the same entries under a prefix of their ow
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from ..errors import InvalidInput, Problem
 from .gp_posterior import FITTED_ARRAYS, MODES
 
-if TYPE_CHECKING:
-    from .gp import GPLaw
-
 KIND = "gp_law"
 VERSION = 2                     # 2: linear_coef (the mean function) stored
 
 
-def law_to_arrays(law: GPLaw) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-    """The fitted ``law`` as named arrays and JSON metadata."""
+def law_to_arrays(law: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """The fitted ``law`` (a :class:`~.gp.GPLaw`) as named arrays and JSON metadata."""
     arrays = {"x_mean": law.x_mean_, "x_scale": law.x_scale_, "y_mean": law.y_mean_,
               "y_scale": law.y_scale_, "length_scale": law.length_scale_,
               "hyper": np.array([law.sigma_f_, law.noise_]), "linear_coef": law.linear_coef_}
@@ -47,8 +44,8 @@ def law_to_arrays(law: GPLaw) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     return arrays, meta
 
 
-def law_from_arrays(cls: type[GPLaw], arrays: dict[str, np.ndarray], meta: dict[str, Any], file: str,
-                    prefix: str = "") -> GPLaw:
+def law_from_arrays(cls: type, arrays: dict[str, np.ndarray], meta: dict[str, Any], file: str,
+                    prefix: str = "") -> Any:
     """Inverse of :func:`law_to_arrays`: a law of class ``cls`` with every fitted attribute set (its
     prediction path not yet built); problems name ``file`` and the entry (under ``prefix``)."""
     def fail(element: str, msg: str) -> InvalidInput:

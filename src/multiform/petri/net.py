@@ -8,6 +8,7 @@ are maneuvers run by one control law each; ``lam`` is a transition's firing weig
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from functools import cached_property
@@ -277,6 +278,20 @@ class APN:
         """Transitions with the same input places as ``tid`` (its choice group), itself excluded."""
         pre = self.transition(tid).preset
         return tuple(t.id for t in self.transitions if t.id != tid and t.preset == pre)
+
+    def place_law(self, place: str) -> str | None:
+        """The law that runs while ``place`` holds the token: the commonest law of transitions into it."""
+        laws = Counter(t.law for t in self.transitions if place in t.outputs and t.law and place not in t.inputs)
+        if not laws:
+            laws = Counter(t.law for t in self.transitions if place in t.outputs and t.law)
+        return laws.most_common(1)[0][0] if laws else None
+
+    def is_repeat(self, tid: str) -> bool:
+        """A self-loop that reruns the maneuver its place already runs (a repeat, not a switch): the
+        mentor's tags show a maneuver once however often the robot repeats it, so its switches say
+        nothing about when to repeat."""
+        t = self.transition(tid)
+        return set(t.outputs) == set(t.inputs) and all(self.place_law(p) in (None, t.law) for p in t.inputs)
 
     @cached_property
     def value_names(self) -> tuple[str, ...]:

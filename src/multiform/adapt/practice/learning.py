@@ -18,7 +18,6 @@ mentor's grades of some trials and its takeovers of failed ones, and refits of t
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
 
 from scipy.stats import binomtest
 
