@@ -32,7 +32,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 warnings.filterwarnings("ignore", message="A single label was found", category=UserWarning)
 warnings.filterwarnings("ignore", message="y_pred contains classes not in y_true", category=UserWarning)
 
-from multiform.adapt.evaluation import Variant, evaluate  # noqa: E402
+from multiform.evaluation import Variant, evaluate  # noqa: E402
 from multiform.io import read_json, write_json  # noqa: E402
 from multiform.job import Job, JobConfig  # noqa: E402
 from multiform.model import SkillModel  # noqa: E402

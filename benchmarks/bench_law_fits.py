@@ -34,7 +34,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import numpy as np  # noqa: E402
 
-from multiform.adapt.evaluation import Evaluator, Variant  # noqa: E402
+from multiform.evaluation import Evaluator, Variant  # noqa: E402
 from multiform.learn.training import LawSettings, fit_law  # noqa: E402
 from multiform.model import SkillModel  # noqa: E402
 from multiform.task import load_task  # noqa: E402

@@ -30,7 +30,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 os.environ.setdefault("MUJOCO_GL", "egl")
 warnings.filterwarnings("ignore", message="A single label was found", category=UserWarning)
 
-from multiform.adapt.evaluation import Evaluator, Variant  # noqa: E402
+from multiform.evaluation import Evaluator, Variant  # noqa: E402
 from multiform.task import load_task  # noqa: E402
 task = load_task("pendulum")
 

@@ -161,7 +161,7 @@ def faulty_model(base: Path, task: str, kind: Kind | None, strength: Any, folder
 
 def run_one(base: Path, task_name: str, kind: Kind | None, strength: Any, seed: int, out: Path,
             max_trials: int, eval_trials: int, workers: int, log=print) -> dict[str, Any]:
-    from multiform.adapt.evaluation import Variant, evaluate
+    from multiform.evaluation import Variant, evaluate
     from multiform.adapt.practice import Practice
     from multiform.task import load_task
     task = load_task(task_name)

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from multiform.adapt.evaluation import Evaluator, Variant, evaluate
+from multiform.evaluation import Evaluator, Variant, evaluate
 from multiform.job import Job, JobConfig, train_model
 from multiform.model import SkillModel
 from multiform.report.browser import chromium, render

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 import multiform
-from multiform.adapt.evaluation import Variant, evaluate
+from multiform.evaluation import Variant, evaluate
 from multiform.cli import main
 from multiform.demos.dataset import read_dataset, write_dataset
 from multiform.demos.record import record_many

@@ -92,8 +92,8 @@ def evaluate(model: Any, task: TaskLike, trials: int = 200, seed: int = 0, push_
     """The model on the task's evaluation trials, judged by the task's physical check: the success
     rate with its 95 % Wilson interval, the robot's own verdict beside it, one record per trial
     (``trials_detail``) — what ``multiform evaluate`` writes to ``evaluation.json``."""
-    from .adapt.evaluation import Variant
-    from .adapt.evaluation import evaluate as run
+    from .evaluation import Variant
+    from .evaluation import evaluate as run
     model = open_model(model) if isinstance(model, (str, os.PathLike)) else model
     task = load_task(task)
     model.verify()

@@ -407,7 +407,7 @@ def cmd_practice(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    from .adapt.evaluation import Variant, evaluate
+    from .evaluation import Variant, evaluate
     from .io import write_json
     from .lock import check_writable
     from .model import SkillModel

@@ -176,24 +176,25 @@ def _local_model(digest: str, box: list[ray.ObjectRef], env_modules: Sequence[st
 
 # -- evaluation trials ------------------------------------------------------------------------------
 
-def evaluation_trial(version: str, task: str, env_overrides: dict[str, Any], variant: Any, digest: str,
-                     box: list[ray.ObjectRef], spec: Any) -> dict[str, Any]:
-    """One evaluation trial on a Ray worker: the record :func:`multiform.adapt.evaluation._run` makes.
+def evaluation_trial(version: str, run: Callable[..., dict[str, Any]], task: str, env_overrides: dict[str, Any],
+                     variant: Any, digest: str, box: list[ray.ObjectRef], spec: Any) -> dict[str, Any]:
+    """One evaluation trial on a Ray worker: ``run(task, env_overrides, variant, spec)`` (the
+    evaluation's :func:`~multiform.evaluation.trial_in_worker`) on this node's copy of the model.
     ``box`` holds the packed model's reference unresolved, so only a worker without the model
     fetches it."""
-    from .adapt import evaluation
     _same_version(version)
     local = _local_model(digest, box, variant.env_modules)
-    evaluation.ensure_worker(task, env_overrides)
-    return evaluation._run(replace(variant, model_dir=str(local)), spec)
+    return run(task, env_overrides, replace(variant, model_dir=str(local)), spec)
 
 
 class RayTrials:
-    """The Ray side of :class:`~multiform.adapt.evaluation.Evaluator`: trials as tasks, one CPU each."""
+    """The Ray side of :class:`~multiform.evaluation.Evaluator`: trials as tasks, one CPU each, each
+    ``run(task, env_overrides, variant, spec)``."""
 
-    def __init__(self, task: str, env_overrides: dict[str, Any], address: str, num_cpus: int | None = None):
+    def __init__(self, run: Callable[..., dict[str, Any]], task: str, env_overrides: dict[str, Any], address: str,
+                 num_cpus: int | None = None):
         connect(address, num_cpus)
-        self.task, self.env_overrides = task, env_overrides
+        self.run, self.task, self.env_overrides = run, task, env_overrides
         self._packs: dict[str, ray.ObjectRef] = {}
         self._refs: list[ray.ObjectRef] = []
 
@@ -203,8 +204,8 @@ class RayTrials:
         if digest not in self._packs:
             self._packs[digest] = ray.put(pack)
         fn = _remote(evaluation_trial)
-        refs = [fn.remote(__version__, self.task, self.env_overrides, variant, digest, [self._packs[digest]], spec)
-                for spec in trials]
+        refs = [fn.remote(__version__, self.run, self.task, self.env_overrides, variant, digest, [self._packs[digest]],
+                          spec) for spec in trials]
         self._refs += refs
         return [_future(r) for r in refs]
 
@@ -218,22 +219,22 @@ class RayTrials:
 
 # -- demonstrations ---------------------------------------------------------------------------------
 
-def demonstration(version: str, task: str, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any],
-                  seed: int) -> Any:
-    """One scripted-mentor demonstration on a Ray worker (an Episode: arrays, labels, options)."""
-    from .demos import record
+def demonstration(version: str, run: Callable[..., Any], task: str, env_kwargs: dict[str, Any],
+                  mentor_kwargs: dict[str, Any], seed: int) -> Any:
+    """One scripted-mentor demonstration on a Ray worker: ``run(task, env_kwargs, mentor_kwargs,
+    seed)`` (the recorder's :func:`~multiform.demos.record.demonstration_in_worker`; an Episode)."""
     _same_version(version)
-    record.ensure_worker(task, env_kwargs, mentor_kwargs)
-    return record._record(seed)
+    return run(task, env_kwargs, mentor_kwargs, seed)
 
 
-def record_demos(task: str, seeds: Sequence[int], env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any],
-                 address: str, num_cpus: int | None = None,
+def record_demos(run: Callable[..., Any], task: str, seeds: Sequence[int], env_kwargs: dict[str, Any],
+                 mentor_kwargs: dict[str, Any], address: str, num_cpus: int | None = None,
                  progress: Callable[[int, int], None] | None = None) -> list[Any]:
-    """One demonstration per seed as Ray tasks, in seed order."""
+    """One demonstration per seed as Ray tasks (each ``run(task, env_kwargs, mentor_kwargs, seed)``),
+    in seed order."""
     connect(address, num_cpus)
     fn = _remote(demonstration)
-    refs = [fn.remote(__version__, task, env_kwargs, mentor_kwargs, s) for s in seeds]
+    refs = [fn.remote(__version__, run, task, env_kwargs, mentor_kwargs, s) for s in seeds]
     out = []
     for i, ref in enumerate(refs):
         out.append(_future(ref).result())

@@ -25,7 +25,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from .adapt.evaluation import Evaluator, Variant
+from .evaluation import Evaluator, Variant
 from .demos.dataset import read_dataset, write_dataset
 from .demos.episode import Episode
 from .demos.record import demo_push, record_many

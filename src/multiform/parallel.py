@@ -7,8 +7,11 @@ address is given.
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 import sys
+from collections.abc import Callable, Hashable
 from types import ModuleType
+from typing import Any
 
 from .errors import InvalidInput
 
@@ -38,3 +41,43 @@ def ray_backend() -> ModuleType:
             raise
         raise InvalidInput("Ray is not installed; pip install 'multiform[ray]'", element="--ray") from None
     return cluster
+
+
+class WorkerState:
+    """What a worker process keeps between calls (a task loaded, envs made), set up once per key: in
+    a local pool's initializer or a Ray worker's first call with that key. ``setup(*args)`` makes
+    the state (a dict), ``close(state)`` ends it when the key changes."""
+
+    def __init__(self, setup: Callable[..., dict[str, Any]], close: Callable[[dict[str, Any]], None]):
+        self._setup, self._close = setup, close
+        self.key: Hashable | None = None
+        self.state: dict[str, Any] = {}
+
+    def ensure(self, key: Hashable, *args: Any) -> dict[str, Any]:
+        """The state of ``key``, set up now unless it already is (one BLAS thread per worker: the
+        1 kHz loop is single-threaded and the workers are the parallelism)."""
+        if self.key != key or not self.state:
+            self.clear()
+            os.environ.setdefault("OMP_NUM_THREADS", "1")
+            from threadpoolctl import threadpool_limits
+            threadpool_limits(1)
+            self.state = self._setup(*args)
+            self.key = key
+        return self.state
+
+    def start(self, key: Hashable, *args: Any) -> dict[str, Any]:
+        """A pool worker's initializer: set up afresh. What a forked worker inherited from its parent
+        is dropped, not closed: it is the parent's to close."""
+        self.key, self.state = None, {}
+        return self.ensure(key, *args)
+
+    def clear(self) -> None:
+        """End the state (its envs closed)."""
+        if self.state:
+            self._close(self.state)
+        self.key, self.state = None, {}
+
+
+def task_key(task: Any) -> str:
+    """How a worker tells tasks apart: a task's spec string, or its name."""
+    return task if isinstance(task, str) else str(getattr(task, "TASK", id(task)))

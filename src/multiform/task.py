@@ -197,7 +197,7 @@ class Task:
         return dict(self.DEMO_ENV_KWARGS)
 
     def ablations(self, model: Any, out: Path, cfg: Any) -> Iterable:
-        """Baselines to evaluate beside the skill (:class:`multiform.adapt.evaluation.Variant`)."""
+        """Baselines to evaluate beside the skill (:class:`multiform.evaluation.Variant`)."""
         return []
 
     def __repr__(self) -> str:

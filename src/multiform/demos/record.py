@@ -8,6 +8,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from ..parallel import WorkerState, mp_context, ray_backend, task_key
 from ..runtime.contract import env_contract
 from .episode import Episode, Mentor
 
@@ -88,32 +89,30 @@ def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, A
     return episode
 
 
-_WORKER: dict[str, Any] = {}
-
-
-def _init(task: Any, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) -> None:
-    from threadpoolctl import threadpool_limits
-
+def _setup(task: Any, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) -> dict[str, Any]:
     import multiform.envs  # noqa: F401  (registers the envs; a spawned worker has not imported them)
 
     from ..task import load_task
-    threadpool_limits(1)
     t = load_task(task) if isinstance(task, str) else task
-    _WORKER.update(task=t, env=gym.make(t.ENV_ID, **env_kwargs), mentor=t.make_mentor(**mentor_kwargs),
-                   key=(_task_key(task), repr(env_kwargs), repr(mentor_kwargs)))
+    return {"task": t, "env": gym.make(t.ENV_ID, **env_kwargs), "mentor": t.make_mentor(**mentor_kwargs)}
 
 
-def ensure_worker(task: str, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) -> None:
-    """Set this process up to record ``task`` unless it already is (a Ray worker records many)."""
-    if _WORKER.get("key") != (_task_key(task), repr(env_kwargs), repr(mentor_kwargs)):
-        if "env" in _WORKER:
-            _WORKER["env"].close()
-        _WORKER.clear()
-        _init(task, env_kwargs, mentor_kwargs)
+_WORKER = WorkerState(_setup, lambda state: state["env"].close())
 
 
-def _task_key(task: Any) -> str:
-    return task if isinstance(task, str) else str(getattr(task, "TASK", id(task)))
+def _key(task: Any, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) -> tuple[str, str, str]:
+    return task_key(task), repr(env_kwargs), repr(mentor_kwargs)
+
+
+def _pool_init(task: Any, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) -> None:
+    _WORKER.start(_key(task, env_kwargs, mentor_kwargs), task, env_kwargs, mentor_kwargs)
+
+
+def demonstration_in_worker(task: str, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any],
+                            seed: int) -> Episode:
+    """One scripted-mentor demonstration in a worker that may record many (a Ray worker)."""
+    _WORKER.ensure(_key(task, env_kwargs, mentor_kwargs), task, env_kwargs, mentor_kwargs)
+    return _record(seed)
 
 
 def demo_push(task: Any, seed: int) -> PushDuring | None:
@@ -124,7 +123,7 @@ def demo_push(task: Any, seed: int) -> PushDuring | None:
 
 
 def _record(seed: int) -> Episode:
-    w = _WORKER
+    w = _WORKER.state
     return record_episode(w["env"], w["mentor"], seed, w["task"].demo_options(seed), push=demo_push(w["task"], seed))
 
 
@@ -143,22 +142,19 @@ def record_many(task: Any, seeds: list[int], env_kwargs: dict[str, Any] | None =
 
     import multiform.envs  # noqa: F401  (registers the envs)
 
-    from ..parallel import mp_context, ray_backend
     env_kwargs, mentor_kwargs = dict(env_kwargs or {}), dict(mentor_kwargs or {})
     if ray:
-        return ray_backend().record_demos(task, seeds, env_kwargs, mentor_kwargs, ray, num_cpus=max(1, workers),
-                                          progress=progress)
+        return ray_backend().record_demos(demonstration_in_worker, task, seeds, env_kwargs, mentor_kwargs, ray,
+                                          num_cpus=max(1, workers), progress=progress)
     out: list[Episode] = []
     if workers <= 1:
-        ensure_worker(task, env_kwargs, mentor_kwargs)
         for i, s in enumerate(seeds):
-            out.append(_record(s))
+            out.append(demonstration_in_worker(task, env_kwargs, mentor_kwargs, s))
             if progress:
                 progress(i + 1, len(seeds))
-        _WORKER["env"].close()
         _WORKER.clear()
         return out
-    with ProcessPoolExecutor(max_workers=workers, mp_context=mp_context(start_method), initializer=_init,
+    with ProcessPoolExecutor(max_workers=workers, mp_context=mp_context(start_method), initializer=_pool_init,
                              initargs=(task, env_kwargs, mentor_kwargs)) as pool:
         for i, ep in enumerate(pool.map(_record, seeds)):
             out.append(ep)

@@ -97,7 +97,7 @@ class Nunchaku(Task):
     def ablations(self, model, out, cfg) -> list:
         """The baselines on the same seeds and demonstrations: the unrevised net (if practice revised
         it), and single-form learning from demonstration (one GP law on all demonstration data)."""
-        from ..adapt.evaluation import Variant
+        from ..evaluation import Variant
         from .baselines import demo_only_model
         rows = []
         if model.version > 0:

@@ -145,7 +145,7 @@ class Pendulum(Task):
         """The baselines on the same seeds and demonstrations, each in a model directory of its own made
         from the trained model (laws, judges, inverse model), so practice can revise the model meanwhile.
         Yielded as each is built, so the job can start one's trials while it fits the next."""
-        from ..adapt.evaluation import Variant
+        from ..evaluation import Variant
         from .baselines import demo_only_model, same_laws_model
         inv = cfg.inverse_model
         as_written = same_laws_model(model, out / "baselines" / "as_written", self.SKILL)

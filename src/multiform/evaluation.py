@@ -12,15 +12,14 @@ the full skill); the robot's own verdict (net outcome + judges) is kept beside i
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
-from ..parallel import mp_context, ray_backend
-from ..stats import rate
-from ..task import TrialSpec
+from .parallel import WorkerState, mp_context, ray_backend, task_key
+from .stats import rate
+from .task import TrialSpec
 
 
 @dataclass(frozen=True)
@@ -37,66 +36,65 @@ class Variant:
     env_modules: tuple[str, ...] = ()
 
 
-_WORKER: dict[str, Any] = {}
+def _setup(task: Any, env_overrides: dict[str, Any]) -> dict[str, Any]:
+    from .task import load_task
+    return {"task": load_task(task) if isinstance(task, str) else task, "env_overrides": env_overrides,
+            "variants": {}}
+
+
+def _close(state: dict[str, Any]) -> None:
+    for v in state["variants"].values():
+        v["env"].close()
+
+
+_WORKER = WorkerState(_setup, _close)
 
 
 def _init(task: Any, env_overrides: dict[str, Any]) -> None:
-    os.environ.setdefault("OMP_NUM_THREADS", "1")
-    from threadpoolctl import threadpool_limits
-
-    from ..task import load_task
-    threadpool_limits(1)
-    _WORKER.clear()
-    _WORKER.update(task=load_task(task) if isinstance(task, str) else task, env_overrides=env_overrides,
-                   variants={}, key=(_task_key(task), repr(env_overrides)))
+    _WORKER.ensure((task_key(task), repr(env_overrides)), task, env_overrides)
 
 
-def ensure_worker(task: str, env_overrides: dict[str, Any]) -> None:
-    """Set this process up for trials of ``task`` unless it already is (a Ray worker runs many)."""
-    if _WORKER.get("key") != (_task_key(task), repr(env_overrides)):
-        _close()
-        _init(task, env_overrides)
-
-
-def _task_key(task: Any) -> str:
-    return task if isinstance(task, str) else str(getattr(task, "TASK", id(task)))
+def _pool_init(task: Any, env_overrides: dict[str, Any]) -> None:
+    _WORKER.start((task_key(task), repr(env_overrides)), task, env_overrides)
 
 
 def _variant(variant: Variant) -> dict[str, Any]:
     """The worker's model, env and executor of ``variant``, opened on its first trial."""
-    got = _WORKER["variants"].get(variant)
+    w = _WORKER.state
+    got = w["variants"].get(variant)
     if got is None:
-        from ..model import SkillModel
+        from .model import SkillModel
         model = SkillModel(variant.model_dir, env_modules=variant.env_modules)
         apn = model.history.version(variant.net_version) if variant.net_version is not None else model.apn
-        env = model.make_env(**_WORKER["env_overrides"])
-        got = _WORKER["variants"][variant] = {
+        env = model.make_env(**w["env_overrides"])
+        got = w["variants"][variant] = {
             "model": model, "env": env,
             "executor": model.executor(env, apn, use_inverse_model=variant.use_inverse_model),
             "judges": model.judges() if variant.use_judges else {}}
     return got
 
 
-def _close() -> None:
-    for v in _WORKER.get("variants", {}).values():
-        v["env"].close()
-    _WORKER.clear()
-
-
 def _run(variant: Variant, spec: TrialSpec) -> dict[str, Any]:
-    from .perturb import PushInPlace
+    from .adapt.perturb import PushInPlace
     w = _variant(variant)
     push = PushInPlace(**spec.push) if spec.push else None
     trace = w["executor"].run(seed=spec.seed, options=spec.options, perturb=push)
     grade = (w["model"].grade(trace, f"eval_{spec.seed}", w["judges"], apn=w["executor"].apn)
              if w["judges"] else None)
-    ok = bool(_WORKER["task"].physical_success(trace))
+    ok = bool(_WORKER.state["task"].physical_success(trace))
     return {"seed": spec.seed, "success": ok, "outcome": trace.outcome,
             "self_success": bool(trace.success and (grade is None or grade.success)),
             "judge_score": None if grade is None else round(grade.score, 4), "duration": round(trace.duration, 3),
             "pushed": spec.push is not None, "fired": trace.fired(), "wall": round(trace.wall_time, 3),
             "clips": {c: v["count"] for c, v in trace.clips.items()}, "trace_digest": _digest(trace),
             **({"fault": trace.fault} if trace.fault else {})}
+
+
+def trial_in_worker(task: str, env_overrides: dict[str, Any], variant: Variant, spec: TrialSpec) -> dict[str, Any]:
+    """One evaluation trial in a worker that may run many (a Ray worker): set up for ``task`` unless
+    it already is, then the trial's record."""
+    _init(task, env_overrides)
+    return _run(variant, spec)
 
 
 def _digest(trace: Any) -> str:
@@ -142,10 +140,11 @@ class Evaluator:
         self._pool: ProcessPoolExecutor | None = None
         self._ray: Any = None
         if ray:
-            self._ray = ray_backend().RayTrials(task, self.env_overrides, ray, num_cpus=max(1, workers))
+            self._ray = ray_backend().RayTrials(trial_in_worker, task, self.env_overrides, ray,
+                                                num_cpus=max(1, workers))
         elif workers > 1:
             self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp_context(start_method),
-                                             initializer=_init, initargs=(task, self.env_overrides))
+                                             initializer=_pool_init, initargs=(task, self.env_overrides))
 
     def submit(self, variant: Variant, trials: Sequence[TrialSpec],
                progress: Callable[[], None] | None = None) -> list[Future | _Deferred]:
@@ -167,8 +166,7 @@ class Evaluator:
         return summarise(variant, [f.result() for f in futures])
 
     def _run_here(self, variant: Variant, spec: TrialSpec) -> dict[str, Any]:
-        if not _WORKER:
-            _init(self.task, self.env_overrides)
+        _init(self.task, self.env_overrides)
         return _run(variant, spec)
 
     def close(self) -> None:
@@ -178,8 +176,8 @@ class Evaluator:
         elif self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
-        elif _WORKER:
-            _close()
+        else:
+            _WORKER.clear()
 
     def __enter__(self) -> Evaluator:
         return self
