@@ -510,7 +510,7 @@ def test_evaluate_runs_the_models_task_and_writes_every_trial(work, capsys):
 def test_a_non_finite_inverse_model_or_condition_on_disk_is_refused_before_any_trial(work, artifact, capsys):
     from multiform.learn.inverse import InverseDynamicsModel
     from multiform.learn.inverse import SERVOS
-    from multiform.model import ModelLearners
+    from multiform.adapt.learners import ModelLearners
     model = SkillModel(work / "model")
     if artifact == "inverse_model.npz":
         rng = np.random.default_rng(0)

@@ -216,7 +216,7 @@ def test_the_mentor_labels_only_the_stays_the_judges_graded(tmp_path, monkeypatc
     """A way back and the way in firing within a few ticks leave stays of milliseconds that the
     judges do not grade (:func:`~multiform.learn.judge.grade_episode`); the mentor's word on them
     is not asked for, so no judge learns what a few milliseconds of a place look like."""
-    import multiform.demos.labelling as labelling
+    import multiform.adapt.practice.learning as learning
     model = SkillModel.create(tmp_path / "model", "pendulum")
     apn, _ = add_transition(model.apn, "t7", {"in": ["P2"], "out": ["P1"], "law": "swing_up",
                                               "condition": {"model": "back", "unless": "t1"}}, "test")
@@ -224,7 +224,7 @@ def test_the_mentor_labels_only_the_stays_the_judges_graded(tmp_path, monkeypatc
     grade = TrialGrade(segments=[SegmentGrade("c_3", 0, 100, "P1", "P1", 0.9),
                                  SegmentGrade("c_3", 105, 250, "P2", "P2", 0.9)], places={"P1": 0.9, "P2": 0.9}, score=0.9)
     revised = []
-    monkeypatch.setattr(labelling, "refit_judges", lambda model, places, episodes, seed=0: revised.append(places) or {})
+    monkeypatch.setattr(learning, "refit_judges", lambda model, places, episodes, seed=0: revised.append(places) or {})
 
     def mentor(placed, net):
         return [SegmentLabel(s, e, p, True, "mentor") for s, e, p in placed.segments() if p in ("P1", "P2")]

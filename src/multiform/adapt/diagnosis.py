@@ -93,7 +93,7 @@ def diagnose(apn: APN, traces: Sequence[Trace], region_scores: RegionScorer | No
     the state then went below the floor ``leave_below[p]`` of its place p with still no place
     matching — the mentor succeeded from states just outside a region, so a catch that strays a
     little is not a new place. The floors are calibrated logits, as everywhere a floor travels
-    (:meth:`~multiform.model.ModelLearners.leave_floors`,
+    (:meth:`~multiform.adapt.learners.ModelLearners.leave_floors`,
     :class:`~multiform.learn.region.RegionCondition`); a place without one uses ``region_threshold``. With ``mentor`` the findings of
     :func:`~.compare.compare_with_mentor` are added; successful trials count there, those among
     ``traces`` and those given only by what they fired (``succeeded_fired``: practice keeps no

@@ -40,12 +40,13 @@ from typing import Any, TextIO
 import h5py
 import numpy as np
 
+from ..adapt.learners import refit_judges
 from ..errors import InvalidInput
 from ..learn.features import Segment
 from ..learn.judge import Judge
 from ..learn.labels import ROBOT, LabelRecord, LabelStore, is_mentor, now
-from ..learn.training import demo_source, judged_places, label_balance, record_segments
-from ..learn.views import is_mirror, stays, value_matrix
+from ..learn.training import demo_source, judged_places
+from ..learn.views import stays, value_matrix
 from ..model import SkillModel
 from ..petri.net import APN
 from ..runtime.trace import Trace
@@ -438,54 +439,3 @@ def _ask(read_key: KeyReader, prompt: str, log: Callable[[str], None]) -> str:
         log(f"  keys: {KEY_HELP}")
         key = read_key(prompt)
     return key
-
-
-def refit_judges(model: SkillModel, places: Sequence[str], episodes: Mapping[str, Episode], labeller: str = "",
-                 seed: int = 0) -> dict[str, dict[str, Any]]:
-    """Revise the judges of ``places`` with the store's effective mentor labels whose segments can
-    be cut from ``episodes`` or the model's demonstrations; saves them and notes them in the manifest.
-
-    A place without a saved judge gets a new one fitted on those labels. If the skill declares a
-    mirror symmetry, every label also teaches its segment's mirror image (as in the first fit).
-    """
-    apn = model.apn
-    judged = judged_places(apn)
-    known: dict[str, Episode] = dict(episodes)
-    try:
-        for i, ep in enumerate(model.episodes):
-            known.setdefault(demo_source(i), ep)
-    except InvalidInput:
-        pass                                    # demonstrations moved away: label sources only
-    store = model.labels
-    saved = model.judges()
-    info: dict[str, dict[str, Any]] = {}
-    for place in places:
-        variables = judged[place]
-        cache: dict[str, np.ndarray] = {}
-        segs, y, unknown, used = [], [], 0, 0
-        for r in store.effective(place=place):
-            ep = known.get(r.source)
-            if ep is None or r.end > ep.num_samples:
-                unknown += 1
-                continue
-            cut = record_segments(apn, ep, r, variables, cache)
-            segs += cut
-            y += [r.success] * len(cut)
-            used += 1
-        old = saved.get(place)
-        judge = old.revise(segs, y) if old is not None else \
-            Judge(place=place, variables=variables, random_state=seed).fit(segs, y)
-        model.save_judge(place, judge)
-        best = judge.cv_scores_.get(judge.best_kernel_, {})
-        real = np.array([not is_mirror(k[0]) for k in judge.keys_], dtype=bool)
-        info[place] = {"segments": int(real.sum()), "success_labels": int(judge.y_[real].sum()),
-                       "mirror_images": int((~real).sum()), **label_balance(judge.y_[real]),
-                       "kernel": judge.best_kernel_, "cv_score": best.get("score") if isinstance(best, dict) else best,
-                       "cv_scores": {k: (v.get("score") if isinstance(v, dict) else v)
-                                     for k, v in judge.cv_scores_.items()},
-                       "revised": now(), "revised_by": labeller, "labels_used": used,
-                       "labels_not_found": unknown}
-    judges_info = dict(model.manifest.get("training", {}).get("judges", {}))
-    judges_info.update(info)
-    model.update_manifest(training={"judges": judges_info})
-    return info

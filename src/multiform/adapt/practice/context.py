@@ -6,7 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any
 
-from ...model import ModelLearners, SkillModel
+from ...model import SkillModel
+from ..learners import ModelLearners
 from ...petri.revision import Revision
 from ..experience import Experience
 from .config import PracticeConfig

@@ -31,6 +31,7 @@ from ...petri.revision import refit_law
 from ...runtime.trace import Trace
 from ..diagnosis import is_evidence
 from ..experience import select_segments
+from ..learners import refit_judges
 from ..takeover import stuck_tick
 from .config import REVERT_P
 from .context import Context
@@ -79,7 +80,6 @@ class Learning:
                       ) -> tuple[dict[tuple[int, int], bool], MentorGrade]:
         """The mentor labels every stay of trial ``k`` the judges graded; the labels go to the label
         store and revise the judges. Returns the verdicts by stay and the grade's account."""
-        from ...demos.labelling import refit_judges
         ctx = self.ctx
         source = ctx.source(k)
         ep = trace.to_episode()

@@ -17,7 +17,8 @@ from typing import Any
 
 from ...io import read_json, write_json
 from ...lock import exclusive
-from ...model import ModelLearners, SkillModel
+from ...model import SkillModel
+from ..learners import ModelLearners
 from ...runtime.executor import Executor
 from ...runtime.trace import Trace
 from ..diagnosis import is_evidence
