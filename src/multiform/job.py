@@ -15,7 +15,6 @@ Stages, each timed and each resumable (a finished stage's output on disk is reus
 
 from __future__ import annotations
 
-import json
 import statistics
 import time
 from collections.abc import Callable, Sequence
@@ -439,7 +438,3 @@ def _train_beside(trainer: Callable[..., dict[str, Any]], path: str, seed: int, 
         send.send((False, traceback.format_exc(), lines))
     finally:
         send.close()
-
-
-def load_metrics(out: str | Path) -> dict[str, Any]:
-    return json.loads((Path(out) / "metrics.json").read_text())

@@ -294,9 +294,6 @@ class Candidate:
     build: Callable[[], Repair | None]
 
 
-STAGES = ("lambda", "condition", "limit", "law", "structure")
-
-
 def candidates(apn: APN, d: Diagnosis, learners: Learners, exhausted: frozenset[str] = frozenset()
                ) -> list[Candidate]:
     """Every repair the diagnosis supports, least change to the mentor's definition first."""

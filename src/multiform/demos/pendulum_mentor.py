@@ -60,6 +60,7 @@ from typing import Any
 
 import numpy as np
 
+from ..angles import wrap_angle
 from ..envs.arm_pendulum import NOMINAL, equivalent_length
 from .episode import Episode, SegmentLabel
 
@@ -67,12 +68,6 @@ G = 9.81
 BALANCE_GAINS = (4.385, 0.8646, 0.9542, 1.882)   # v = K . (theta, omega, x, xdot)
 MISTAKES = ("wrong_phase", "over_pump", "early_switch", "lapse")
 
-
-def _wrap(a: float) -> float:
-    a = math.fmod(a + math.pi, 2.0 * math.pi)
-    if a <= 0.0:
-        a += 2.0 * math.pi
-    return a - math.pi
 
 
 class PendulumMentor:
@@ -199,7 +194,7 @@ class PendulumMentor:
         j = max(0, k - self.delay_steps)
         th, om, x, xd = self._buf[j % len(self._buf)]
         r = self.rng.standard_normal(4)
-        th = _wrap(th + self.angle_noise * r[0])
+        th = wrap_angle(th + self.angle_noise * r[0])
         om += self.rate_noise * r[1]
         x += self.position_noise * r[2]
         xd += self.velocity_noise * r[3]

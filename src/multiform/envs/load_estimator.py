@@ -28,15 +28,11 @@ from __future__ import annotations
 
 import math
 
+from ..angles import wrap_angle
+
 GRAVITY = 9.81
 TWO_PI = 2.0 * math.pi
 
-
-def _wrap(a: float) -> float:
-    a = math.fmod(a + math.pi, TWO_PI)
-    if a <= 0.0:
-        a += TWO_PI
-    return a - math.pi
 
 
 class LoadEstimator:
@@ -249,5 +245,5 @@ class LoadEstimator:
             else:
                 self.rejected += 1
         self.P = (n00, n01, n02, n03, n11, n12, n13, n22, n23, n33)
-        self.x = [_wrap(x0), _wrap(x1), x2, x3]
-        return _wrap(x1 - q), x3 - w
+        self.x = [wrap_angle(x0), wrap_angle(x1), x2, x3]
+        return wrap_angle(x1 - q), x3 - w

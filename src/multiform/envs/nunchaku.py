@@ -94,6 +94,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
+from ..angles import wrap_angle
 from .load_estimator import LoadEstimator
 from .rendering import make_renderer
 
@@ -126,12 +127,6 @@ def model_path() -> str:
     """Path of the bundled MJCF model."""
     return str(resources.files("multiform") / "envs" / "assets" / "nunchaku.xml")
 
-
-def _wrap(a: float) -> float:
-    a = math.fmod(a + math.pi, 2.0 * math.pi)
-    if a <= 0.0:
-        a += 2.0 * math.pi
-    return a - math.pi
 
 
 class NunchakuEnv(gym.Env):
@@ -528,7 +523,7 @@ class NunchakuEnv(gym.Env):
         w_free = -d.cvel[free, 1] + d.cvel[h, 1]
         scene = {"hand": (xp[h, 0] - HOME[0], xp[h, 2] - HOME[1], q), "rod_a": (xp[ra, 0], xp[ra, 2], ang_a),
                  "rod_b": (xp[rb, 0], xp[rb, 2], ang_b), "held": held, "back_touch": float(d.sensordata[self._sens["back_touch"]]),
-                 "free_angle": _wrap(free_ang - q), "free_rate": w_free, "hand_z_world": xp[h, 2]}
+                 "free_angle": wrap_angle(free_ang - q), "free_rate": w_free, "hand_z_world": xp[h, 2]}
         truth = {"phi": scene["free_angle"], "omega": w_free}
         return {"diverged": False, "dropped": dropped, "scene": scene, "truth": truth,
                 "is_success": self._flip["done"]}

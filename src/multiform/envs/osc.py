@@ -33,7 +33,6 @@ kr, kw      1600, 80 orientation hold on the rotation-vector error
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import NamedTuple
 
@@ -211,20 +210,3 @@ class ReferenceController:
     def torques(self, obs: np.ndarray, command: np.ndarray) -> np.ndarray:
         """Torques that track the end-effector command ``[v_cmd]`` from state ``obs``."""
         return self.torques_at(task_acceleration(obs, float(command[0]), self.gains), obs)
-
-
-def rotation_error(xmat: np.ndarray) -> np.ndarray:
-    """Rotation vector of a flange orientation matrix relative to the home (= world) orientation."""
-    quat = np.empty(4)
-    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(xmat, dtype=np.float64).ravel())
-    rv = np.empty(3)
-    mujoco.mju_quat2Vel(rv, quat, 1.0)
-    return rv
-
-
-def wrap_angle(a: float) -> float:
-    """``a`` wrapped to (-pi, pi]."""
-    a = math.fmod(a + math.pi, 2.0 * math.pi)
-    if a <= 0.0:
-        a += 2.0 * math.pi
-    return a - math.pi

@@ -162,11 +162,6 @@ class LabelStore:
                                file=f, element=f"line {i0}")
         return [parse_record(o, f, f"line {i}") for i, o in objs[1:]]
 
-    def reload(self) -> None:
-        """Re-read the file (another process may have appended)."""
-        if self.path is not None and self.path.exists():
-            self._records = self._read()
-
     @property
     def records(self) -> tuple[LabelRecord, ...]:
         """Every record, in the order they were added."""

@@ -15,7 +15,7 @@ from __future__ import annotations
 import warnings
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -368,15 +368,6 @@ def went_on(apn: APN, trace: Any) -> Callable[[str, int], bool]:
         t = left.get(e)
         return t in forward and place not in apn.transition(t).outputs
     return on
-
-
-@dataclass
-class TrainingReport:
-    """What :func:`train` fitted and measured."""
-
-    laws: dict[str, dict[str, Any]] = field(default_factory=dict)
-    judges: dict[str, dict[str, Any]] = field(default_factory=dict)
-    regions: dict[str, Any] = field(default_factory=dict)
 
 
 SWITCH_GRID = ({"C": 10.0, "gamma": 1.0}, {"C": 10.0, "gamma": 3.0}, {"C": 100.0, "gamma": 1.0},

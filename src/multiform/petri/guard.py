@@ -23,16 +23,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..angles import wrap_angle
+
 Values = Sequence[float]
 Compiled = Callable[[Values], float]
-
-
-def wrap_angle(a: float) -> float:
-    """Wrap an angle to (-pi, pi]."""
-    w = math.fmod(a + math.pi, 2.0 * math.pi)
-    if w <= 0.0:
-        w += 2.0 * math.pi
-    return w - math.pi
 
 
 # name -> (min args, max args or None for variadic, implementation)

@@ -174,8 +174,3 @@ def overlay_frames(frames: Iterable[np.ndarray], trace: Any, push_time: float | 
     labels = frame_labels(trace, every, count, push_time)
     for i, frame in enumerate(frames):
         yield draw_lines(frame, labels[min(i, count - 1)])
-
-
-def frames_of(env: gym.Env, qpos: Sequence[np.ndarray], **kw: Any) -> list[np.ndarray]:
-    """All frames of :func:`render_qpos` as a list (for short clips and tests)."""
-    return list(render_qpos(env, qpos, **kw))

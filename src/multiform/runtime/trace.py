@@ -15,7 +15,6 @@ from ..petri.firing import Choice, Firing
 
 TRACE_KIND = "trial_trace"
 TRACE_VERSION = 1
-OUTCOMES = ("success", "failure", "timeout", "diverged", "fault")
 
 
 @dataclass
