@@ -184,7 +184,10 @@ class Job:
 
     def baselines(self, model: SkillModel, ev: Evaluator) -> list[tuple[Variant, list, tqdm]]:
         """Build the task's ablations and queue their trials (the first ``ablation_trials`` of the
-        evaluation trials) on ``ev``; collected by :meth:`evaluate`."""
+        evaluation trials) on ``ev``; collected by :meth:`evaluate`. With ``ablation_trials`` 0 there
+        are none: no ablation is reported rather than one of zero trials."""
+        if not self.cfg.ablation_trials:
+            return []
         sub = self._specs()[: self.cfg.ablation_trials]
         queued = []
         for i, variant in enumerate(self.task.ablations(model, self.out, self.cfg)):

@@ -39,7 +39,7 @@ import numpy as np
 
 from .demos.dataset import read_dataset
 from .demos.episode import Episode
-from .errors import InvalidInput, Problem
+from .errors import InvalidInput, MissingInput, Problem
 from .io import read_json, write_json
 from .lock import exclusive
 from .learn.condition import load_condition
@@ -68,6 +68,8 @@ class SkillModel:
 
     def __init__(self, path: str | os.PathLike, env_modules: Sequence[str] = ()):
         self.path = Path(path)
+        if not self.path.exists():
+            raise MissingInput("no such model directory", file=str(self.path))
         if not (self.path / "skill.yaml").is_file():
             raise InvalidInput("not a skill model directory (no skill.yaml)", file=str(self.path))
         self.history = History(self.path / "skill.yaml", self.path / "skill.history.jsonl")

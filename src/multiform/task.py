@@ -27,7 +27,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from .errors import InvalidInput
+from .errors import InvalidInput, MissingInput
 
 BUNDLED = {"pendulum": "multiform.tasks.pendulum", "nunchaku": "multiform.tasks.nunchaku"}
 ENTRY_POINT_GROUP = "multiform.tasks"
@@ -199,7 +199,7 @@ def _import_module(name: str, spec: str) -> ModuleType:
 def _import_file(path: str, spec: str) -> ModuleType:
     file = Path(path).resolve()
     if not file.is_file():
-        raise InvalidInput("no such file", file=path, element=spec)
+        raise MissingInput("no such file", file=path, element=spec)
     key = "multiform_task_" + "".join(c if c.isalnum() else "_" for c in str(file))
     if key in sys.modules:
         return sys.modules[key]

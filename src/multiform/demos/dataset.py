@@ -39,7 +39,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from ..errors import InvalidInput, Problem
+from ..errors import InvalidInput, MissingInput, Problem
 from ..io import atomic_path, json_default
 from .episode import Episode, SegmentLabel
 
@@ -221,7 +221,7 @@ class Dataset:
 def _read(path: Path) -> tuple[list[Episode], dict[str, Any]]:
     file = str(path)
     if not path.exists():
-        raise InvalidInput("file not found", file=file)
+        raise MissingInput("file not found", file=file)
     try:
         f = h5py.File(path, "r")
     except OSError as exc:

@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidInput
+from ..errors import InvalidInput, MissingInput
 from ..io import json_default
 from .episode import Episode, SegmentLabel
 
@@ -260,6 +260,8 @@ def read_lerobot(root: str | os.PathLike, state_names: Sequence[str] | None = No
 def _read_info(root: Path) -> tuple[dict[str, Any], float]:
     """``meta/info.json`` of a v3 dataset with a ``features`` mapping, and its fps."""
     file = str(root / "meta/info.json")
+    if not root.exists():
+        raise MissingInput("no such folder", file=str(root))
     try:
         info = json.loads((root / "meta/info.json").read_text(encoding="utf-8"))
     except FileNotFoundError:

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
+from ..errors import InvalidInput
 from ..runtime.contract import env_contract
 from .episode import Episode, Mentor
 
@@ -55,7 +57,7 @@ def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, A
     """
     obs_names, cmd_names, dt = env_contract(env)
     obs, info = env.reset(seed=seed, options=options)
-    mentor.reset(obs, np.random.default_rng([seed, 1]))
+    _reset(mentor, obs, np.random.default_rng([seed, 1]), seed)
     obs_rows, act_rows, tags = [], [], []
     t = 0.0
     limit = max_steps if max_steps is not None else 10**9
@@ -88,10 +90,19 @@ def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, A
     return episode
 
 
+def _reset(mentor: Mentor, obs: np.ndarray, rng: np.random.Generator, seed: int) -> None:
+    """``mentor.reset``, told the demonstration's seed when it takes a ``seed`` argument."""
+    params = inspect.signature(mentor.reset).parameters.values()
+    if any(p.name == "seed" or p.kind is p.VAR_KEYWORD for p in params):
+        mentor.reset(obs, rng, seed=seed)
+    else:
+        mentor.reset(obs, rng)
+
+
 _WORKER: dict[str, Any] = {}
 
 
-def _init(task: Any, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) -> None:
+def _init(task: Any, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any], starts: str = "demo") -> None:
     from threadpoolctl import threadpool_limits
 
     import multiform.envs  # noqa: F401  (registers the envs; a spawned worker has not imported them)
@@ -100,7 +111,7 @@ def _init(task: Any, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) 
     threadpool_limits(1)
     t = load_task(task) if isinstance(task, str) else task
     _WORKER.update(task=t, env=gym.make(t.ENV_ID, **env_kwargs), mentor=t.make_mentor(**mentor_kwargs),
-                   key=(_task_key(task), repr(env_kwargs), repr(mentor_kwargs)))
+                   key=(_task_key(task), repr(env_kwargs), repr(mentor_kwargs)), starts=starts)
 
 
 def ensure_worker(task: str, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) -> None:
@@ -125,20 +136,27 @@ def demo_push(task: Any, seed: int) -> PushDuring | None:
 
 def _record(seed: int) -> Episode:
     w = _WORKER
+    if w.get("starts") == "trial":          # the evaluation trials' starts, no experimenter's push
+        return record_episode(w["env"], w["mentor"], seed, w["task"].trial_options(seed))
     return record_episode(w["env"], w["mentor"], seed, w["task"].demo_options(seed), push=demo_push(w["task"], seed))
 
 
 def record_many(task: Any, seeds: list[int], env_kwargs: dict[str, Any] | None = None,
                 mentor_kwargs: dict[str, Any] | None = None, workers: int = 1,
-                progress: Any = None, start_method: str | None = None, ray: str | None = None) -> list[Episode]:
+                progress: Any = None, start_method: str | None = None, ray: str | None = None,
+                starts: str = "demo") -> list[Episode]:
     """Record one demonstration per seed with the task's scripted mentor, on ``workers`` processes
     (``start_method``: see :func:`multiform.parallel.mp_context`), or as Ray tasks with ``ray``
     (``auto``, ``local`` or a cluster address). ``task`` is a :class:`~multiform.task.Task` or what
     :func:`~multiform.task.load_task` reads (spawned and Ray workers need the latter).
 
     ``progress`` is called with (done, total) after each demo. The result is in seed order and does
-    not depend on the number of workers nor on where they run.
+    not depend on the number of workers nor on where they run. ``starts="trial"`` starts each from
+    the task's ``trial_options(seed)`` instead of its ``demo_options(seed)``, without the
+    experimenter's push (the mentor on the robot's evaluation starts; not with ``ray``).
     """
+    if starts not in ("demo", "trial") or (starts == "trial" and ray):
+        raise InvalidInput(f"starts must be 'demo' or 'trial' (not with ray), got {starts!r}", element="starts")
     from concurrent.futures import ProcessPoolExecutor
 
     import multiform.envs  # noqa: F401  (registers the envs)
@@ -151,6 +169,7 @@ def record_many(task: Any, seeds: list[int], env_kwargs: dict[str, Any] | None =
     out: list[Episode] = []
     if workers <= 1:
         ensure_worker(task, env_kwargs, mentor_kwargs)
+        _WORKER["starts"] = starts
         for i, s in enumerate(seeds):
             out.append(_record(s))
             if progress:
@@ -159,7 +178,7 @@ def record_many(task: Any, seeds: list[int], env_kwargs: dict[str, Any] | None =
         _WORKER.clear()
         return out
     with ProcessPoolExecutor(max_workers=workers, mp_context=mp_context(start_method), initializer=_init,
-                             initargs=(task, env_kwargs, mentor_kwargs)) as pool:
+                             initargs=(task, env_kwargs, mentor_kwargs, starts)) as pool:
         for i, ep in enumerate(pool.map(_record, seeds)):
             out.append(ep)
             if progress:

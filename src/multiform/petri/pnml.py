@@ -25,7 +25,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
 
-from ..errors import InvalidInput, Problem
+from ..errors import InvalidInput, MissingInput, Problem
 from ..io import write_text
 from .net import APN
 from .skillfile import IDENT, MAX_COUNT, build_apn, skill_to_data
@@ -387,6 +387,8 @@ def read_pnml(path: str | os.PathLike) -> APN:
     path = Path(path)
     try:
         data = path.read_bytes()
+    except FileNotFoundError:
+        raise MissingInput("file not found", file=str(path)) from None
     except OSError as exc:
         raise InvalidInput(f"cannot read ({exc})", file=str(path)) from None
     return from_pnml(data, str(path))
