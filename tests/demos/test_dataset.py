@@ -53,8 +53,8 @@ def test_robomimic_layout(demo_file):
         assert env_args["type"] == 2       # robomimic's EnvType.GYM_TYPE
         # the actions are what the env in env_args takes: normalised by the env's own limit, 1.5 m/s
         assert env_args["env_kwargs"] == {"action_mode": "ee", "normalize_actions": True}
-        assert list(f["data"].attrs["action_unit"]) == [1.5]
-        np.testing.assert_array_equal(f["data/demo_0/actions"][()], np.clip(eps[0].actions / 1.5, -1, 1))
+        assert list(f["data"].attrs["action_low"]) == [-1.5] and list(f["data"].attrs["action_high"]) == [1.5]
+        np.testing.assert_array_equal(f["data/demo_0/actions"][()], np.clip(2 * (eps[0].actions + 1.5) / 3 - 1, -1, 1))
         np.testing.assert_array_equal(f["data/demo_0/commands"][()], eps[0].actions)
         assert f["data/demo_0"].attrs["num_samples"] == 300
         assert f["data/demo_0/obs/theta"].shape == (300, 1)
@@ -166,7 +166,7 @@ def _as_version_2(path):
     by a power of two per command (``action_scale``)."""
     with h5py.File(path, "r+") as f:
         d = f["data"]
-        assert "action_unit" not in d.attrs
+        assert "action_high" not in d.attrs
         peak = max(np.abs(d[k]["actions"][()]).max() for k in d if k.startswith("demo_"))
         scale = 2.0 ** np.ceil(np.log2(peak))
         d.attrs["format_version"] = 2
@@ -200,7 +200,7 @@ def test_compact_storage_is_exact_and_small(tmp_path):
     back = read_dataset(path).episodes[0]
     assert np.array_equal(back.actions, ep.actions) and np.array_equal(back.obs, ep.obs.astype(np.float32))
     with h5py.File(path) as f:
-        assert "action_unit" not in f["data"].attrs and "commands" not in f["data/demo_0"]
+        assert "action_high" not in f["data"].attrs and "commands" not in f["data/demo_0"]
         assert np.array_equal(f["data/demo_0/actions"][()], ep.actions)
         assert f["data/demo_0/obs/x"].id == f["data/demo_0/obs/xdot"].id          # one dataset, two names
         assert f["data/demo_0/transition"].id.get_storage_size() < 4000
@@ -233,7 +233,8 @@ def test_float64_observations_on_request_half_as_compact(tmp_path):
 
 
 @pytest.mark.parametrize("mutate, fragment", [
-    (lambda f: f["data"].attrs.__setitem__("action_unit", [-1.5]), "action_unit must be 1 positive numbers"),
+    (lambda f: f["data"].attrs.__setitem__("action_high", [-1.5]), "action_low/action_high must be 1 finite limits"),
+    (lambda f: f["data"].attrs.__delitem__("action_low"), "missing attribute 'action_low'"),
     (lambda f: f["data/demo_1"].__delitem__("commands"), "data/demo_1/commands: missing dataset"),
     (lambda f: f["data/demo_0/commands"].__setitem__((5, 0), np.nan), "data/demo_0/commands: must hold finite"),
 ])

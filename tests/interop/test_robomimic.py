@@ -61,7 +61,7 @@ def test_actions_are_what_the_env_in_env_args_takes(recorded):
     _replays(env_args, seed, options, actions, next_obs, 2000)
     ds = read_dataset(recorded)
     assert ds.env_kwargs == {"action_mode": "ee"}                      # the env that takes the commands
-    assert np.allclose(ds.episodes[1].actions, 1.5 * actions, rtol=1e-15, atol=0)
+    assert np.allclose(ds.episodes[1].actions, 1.5 * actions, rtol=0, atol=1e-15)
 
 
 def test_sequence_dataset_with_default_arguments(recorded):

@@ -5,15 +5,16 @@ Layout (format version 3; robomimic's ``SequenceDataset`` and ``get_dataset_info
     /data                      attrs: format_version, skill, env_args (JSON: env_name, type, env_kwargs),
                                       observation_names (JSON), command_names (JSON), dt, total,
                                       transition_names (JSON: the tag codes' names),
-                                      action_unit (n_cmd,) when the actions are normalised
+                                      action_low, action_high (n_cmd,) when the actions are normalised
     /data/demo_0               attrs: num_samples, seed, reset_options (JSON), outcome, mentor
         obs/<name>             (T, 1) float32 (float64 if so written), one dataset per observation entry
                                (identical entries are one dataset under two names)
         next_obs/<name>        (T, 1) the observation after each sample (the last one repeated): a
                                virtual dataset over obs/<name>, so it takes no space
         actions                (T, n_cmd) float64: what the env that env_args describes takes
-        commands               (T, n_cmd) float64, with action_unit only: the mentor's commands in the
-                               env's own units, exactly (actions = clip(commands / action_unit, -1, 1))
+        commands               (T, n_cmd) float64, with action_low/high only: the mentor's commands in
+                               the env's own units, exactly (actions = clip(2 (commands - action_low) /
+                               (action_high - action_low) - 1, -1, 1))
         rewards                (T,) float64, 1 on the last sample of a successful demo, else 0
         dones                  (T,) uint8, 1 on the last sample
         transition             (T,) uint8/uint16 codes into transition_names: the transition the
@@ -25,7 +26,7 @@ Layout (format version 3; robomimic's ``SequenceDataset`` and ``get_dataset_info
 Actions mean what they say, as robomimic's datasets do: in [-1, 1], for an env that takes them.
 When the env (registered with Gymnasium where the file is written) offers ``normalize_actions``, as
 the bundled ones do, ``env_args.env_kwargs`` has ``normalize_actions: true``, which maps [-1, 1]
-linearly onto the env's own action limits (``action_unit``, e.g. ±1.5 m/s), and ``commands`` keeps
+linearly onto the env's own action limits (``action_low``..``action_high``, e.g. ±1.5 m/s), and ``commands`` keeps
 the exact commands that multiform trains on. Otherwise ``actions`` are the env's raw commands and
 ``env_args`` the env as recorded. :attr:`Dataset.env_kwargs` is always the env that takes the
 commands (without ``normalize_actions``).
@@ -87,7 +88,7 @@ def write_dataset(path: str | os.PathLike, episodes: Sequence[Episode], skill: s
     code = {t: k for k, t in enumerate(tag_names)}
     code_dtype = np.uint8 if len(tag_names) <= 256 else np.uint16
     env_kwargs = dict(env_kwargs or {})
-    unit = env_action_unit(env_name, env_kwargs, len(first.command_names))
+    unit = env_action_limits(env_name, env_kwargs, len(first.command_names))
     file_env_kwargs = {**env_kwargs, "normalize_actions": True} if unit is not None else env_kwargs
     path = Path(path)
     with atomic_path(path, suffix=".h5") as tmp:
@@ -102,7 +103,7 @@ def write_dataset(path: str | os.PathLike, episodes: Sequence[Episode], skill: s
             data.attrs["dt"] = float(first.dt)
             data.attrs["total"] = int(sum(ep.num_samples for ep in episodes))
             if unit is not None:
-                data.attrs["action_unit"] = unit
+                data.attrs["action_low"], data.attrs["action_high"] = unit
             data.attrs["transition_names"] = json.dumps(tag_names)
             names = {"success": [], "failure": []}
             for i, ep in enumerate(episodes):
@@ -127,10 +128,12 @@ def train_valid_split(demos: Sequence[str], seed: int = 0,
             "valid": [d for i, d in enumerate(names) if i in valid]}
 
 
-def env_action_unit(env_name: str, env_kwargs: dict[str, Any], n_cmd: int) -> np.ndarray | None:
-    """The env's own action limits (``action_space.high``) when the env, as registered with
-    Gymnasium here, takes ``normalize_actions`` and ``env_kwargs`` do not set it already; None
-    otherwise (the actions are then stored as the env's raw commands)."""
+def env_action_limits(env_name: str, env_kwargs: dict[str, Any], n_cmd: int
+                      ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The env's own action limits (``action_space.low``, ``.high``) when the env, as registered
+    with Gymnasium here, takes ``normalize_actions`` (mapping [-1, 1] linearly onto them) and
+    ``env_kwargs`` do not set it already; None otherwise (the actions are then stored as the env's
+    raw commands)."""
     import inspect
 
     import gymnasium
@@ -146,15 +149,23 @@ def env_action_unit(env_name: str, env_kwargs: dict[str, Any], n_cmd: int) -> np
         base = env.unwrapped
         if "normalize_actions" not in inspect.signature(type(base).__init__).parameters:
             return None
+        low = np.asarray(getattr(base.action_space, "low", np.nan), dtype=np.float64).reshape(-1)
         high = np.asarray(getattr(base.action_space, "high", np.nan), dtype=np.float64).reshape(-1)
     finally:
         env.close()
-    if high.shape != (n_cmd,) or not np.all(np.isfinite(high)) or np.any(high <= 0):
+    if high.shape != (n_cmd,) or low.shape != (n_cmd,) or not np.all(np.isfinite(high - low)) or np.any(high <= low):
         return None
-    return high
+    return low, high
 
 
-def _write_demo(g: h5py.Group, ep: Episode, unit: np.ndarray | None, code: dict[str, int], code_dtype: type,
+def normalised(commands: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """Commands mapped linearly from ``[low, high]`` onto [-1, 1] (clipped), as ``normalize_actions``
+    maps them back."""
+    return np.clip(2.0 * (commands - low) / (high - low) - 1.0, -1.0, 1.0)
+
+
+def _write_demo(g: h5py.Group, ep: Episode, unit: tuple[np.ndarray, np.ndarray] | None, code: dict[str, int],
+                code_dtype: type,
                 obs_dtype: np.dtype, mentor: str) -> None:
     """One episode's group: its attributes, observations, actions (and exact commands when the
     actions are normalised), robomimic's rewards and dones, transition codes and labels."""
@@ -169,7 +180,7 @@ def _write_demo(g: h5py.Group, ep: Episode, unit: np.ndarray | None, code: dict[
     if unit is None:
         _array(g, "actions", commands)
     else:
-        _array(g, "actions", np.clip(commands / unit, -1.0, 1.0))
+        _array(g, "actions", normalised(commands, *unit))
         _array(g, "commands", commands)
     rewards = np.zeros(n, dtype=np.float64)
     dones = np.zeros(n, dtype=np.uint8)
@@ -228,7 +239,7 @@ class Dataset:
     """A validated demonstration file, read fully into :class:`Episode` objects (``episodes``; their
     ``actions`` are the commands in the env's own units), with the file's attributes in ``meta``
     (``env_args`` as stored, ``observation_names``, ``command_names``, ``dt``, ``format_version``,
-    ``obs_dtype``, ``action_unit``). ``skill``, ``env_name`` and ``env_kwargs`` name what recorded
+    ``obs_dtype``, ``action_limits``). ``skill``, ``env_name`` and ``env_kwargs`` name what recorded
     it; iterating gives the episodes."""
 
     def __init__(self, path: str | os.PathLike):
@@ -248,7 +259,7 @@ class Dataset:
         """``gymnasium.make`` arguments of the env that takes the episodes' commands (the file's
         ``env_args`` without the ``normalize_actions`` its actions were written for)."""
         kwargs = dict(self.meta["env_args"].get("env_kwargs", {}))
-        if self.meta.get("action_unit") is not None:
+        if self.meta.get("action_limits") is not None:
             kwargs.pop("normalize_actions", None)
         return kwargs
 
@@ -319,7 +330,7 @@ def _read(path: Path) -> tuple[list[Episode], dict[str, Any]]:
             scale, tag_names = _v2_attrs(data, len(cmd_names), file)
         elif version >= 3:
             unit, tag_names = _v3_attrs(data, len(cmd_names), file)
-        meta["action_unit"] = unit
+        meta["action_limits"] = unit
         names = sorted((k for k in data if k.startswith("demo_")), key=lambda k: int(k.split("_")[1]))
         episodes = []
         problems: list[Problem] = []
@@ -338,14 +349,18 @@ def _read(path: Path) -> tuple[list[Episode], dict[str, Any]]:
         return episodes, meta
 
 
-def _v3_attrs(data: h5py.Group, n_cmd: int, file: str) -> tuple[np.ndarray | None, list[str]]:
-    """Format 3's action unit (None: the actions are the commands) and transition names, checked."""
+def _v3_attrs(data: h5py.Group, n_cmd: int, file: str) -> tuple[tuple[np.ndarray, np.ndarray] | None, list[str]]:
+    """Format 3's action limits (None: the actions are the commands) and transition names, checked."""
     unit = None
-    if "action_unit" in data.attrs:
-        unit = np.asarray(data.attrs["action_unit"], dtype=np.float64).reshape(-1)
-        if unit.shape != (n_cmd,) or not np.all(np.isfinite(unit)) or np.any(unit <= 0):
-            raise InvalidInput(f"action_unit must be {n_cmd} positive numbers, got {unit.tolist()[:8]}",
-                               file=file, element="data")
+    if "action_low" in data.attrs or "action_high" in data.attrs:
+        for key in ("action_low", "action_high"):
+            if key not in data.attrs:
+                raise InvalidInput(f"missing attribute {key!r} beside its pair", file=file, element="data")
+        low, high = (np.asarray(data.attrs[k], dtype=np.float64).reshape(-1) for k in ("action_low", "action_high"))
+        if low.shape != (n_cmd,) or high.shape != (n_cmd,) or not np.all(np.isfinite(high - low)) or np.any(high <= low):
+            raise InvalidInput(f"action_low/action_high must be {n_cmd} finite limits each, low below high, got "
+                               f"{low.tolist()[:8]} / {high.tolist()[:8]}", file=file, element="data")
+        unit = (low, high)
     return unit, _transition_names(data, file)
 
 
@@ -417,7 +432,7 @@ def _read_demo(g: h5py.Group, name: str, obs_names: tuple[str, ...], cmd_names: 
         raise bad("actions", "must hold finite floats")
     if has_commands:            # format 3 with normalised actions: the exact commands beside them
         if "commands" not in g:
-            raise bad("commands", "missing dataset (the file has action_unit)")
+            raise bad("commands", "missing dataset (the file has action_low/action_high)")
         actions = g["commands"][()]
         if actions.shape != (n, len(cmd_names)) or actions.dtype.kind != "f" or not np.all(np.isfinite(actions)):
             raise bad("commands", f"must hold finite floats of shape ({n}, {len(cmd_names)}), "
