@@ -1,4 +1,5 @@
-"""MuJoCo's offscreen renderer, with a message that says what to install when it cannot start.
+"""MuJoCo's offscreen renderer, with a message that says what to install when it cannot start, and
+the envs' frame skip (fewer, longer env steps: the rate at which frames are rendered and recorded).
 The OpenGL backend itself is chosen by :mod:`multiform._gl` before MuJoCo is imported."""
 
 from __future__ import annotations
@@ -21,3 +22,22 @@ def make_renderer(model, height: int, width: int):
     except Exception as exc:     # the GL libraries raise many types; all mean "this backend does not work"
         raise RuntimeError(f"cannot render offscreen with MUJOCO_GL={gl} ({type(exc).__name__}: {exc}); "
                            f"{INSTALL_HINT}") from exc
+
+
+def check_frame_skip(frame_skip: int) -> int:
+    """``frame_skip`` as a whole number of at least 1 (physics steps per env step)."""
+    if isinstance(frame_skip, bool) or int(frame_skip) != frame_skip or frame_skip < 1:
+        raise ValueError(f"frame_skip must be a whole number of at least 1, got {frame_skip!r}")
+    return int(frame_skip)
+
+
+def skip_frames(physics_step, action, frame_skip: int):
+    """``frame_skip`` physics steps with ``action`` held, as one env step: the last step's
+    observation and info, the summed reward; stops early when a step terminates or truncates."""
+    reward = 0.0
+    for _ in range(frame_skip):
+        obs, r, terminated, truncated, info = physics_step(action)
+        reward += r
+        if terminated or truncated:
+            break
+    return obs, reward, terminated, truncated, info
