@@ -35,13 +35,15 @@ def record(task: TaskLike, out: str | os.PathLike, demos: int | None = None, see
            overwrite: bool = False, progress: Progress | None = None, ray: str | None = None) -> Path:
     """Record ``demos`` demonstrations (default: the task's ``DEMOS``) of the task's scripted mentor
     into the demos file ``out`` (HDF5, see docs/demonstrations.md) on ``workers`` processes (or as
-    Ray tasks at the cluster ``ray``); demo ``i`` starts from seed ``100000 * seed + i``. Returns the
-    path."""
+    Ray tasks at the cluster ``ray``); demo ``i`` starts from seed ``100000 * seed + i``. The
+    file's folder is made if missing. Returns the path."""
     from .demos.dataset import write_dataset
     from .demos.record import record_many
     from .lock import check_writable, exclusive
     task = load_task(task)
     out = _new_output(out, overwrite, "file")
+    if not out.parent.exists():
+        out.parent.mkdir(parents=True)
     check_writable(out)                       # before recording, not after
     n = task.DEMOS if demos is None else int(demos)
     with exclusive(out):

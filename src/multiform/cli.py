@@ -251,8 +251,10 @@ def cmd_net_import(args: argparse.Namespace) -> int:
 # -- demonstrations --------------------------------------------------------------------------------
 
 def cmd_record(args: argparse.Namespace) -> int:
+    from .lock import check_writable
     from .task import load_task
     task = load_task(args.task)
+    check_writable(Path(args.out))        # the command makes no folder: a mistyped path is refused
     n = task.DEMOS if args.demos is None else args.demos
     with _progress(f"recording {task.TASK} demos") as progress:
         out = api.record(task, args.out, demos=n, seed=args.seed, workers=args.workers, overwrite=args.overwrite,

@@ -265,9 +265,9 @@ class Job:
         ok = sum(e.outcome == "success" for e in ds)
         mentor = rate(ok, len(ds))
         self.log(f"  beside: the mentor's own rate over its {len(ds)} demonstrations {100 * mentor['rate']:.1f} % "
-                 f"(95 % CI {100 * mentor['low']:.1f}-{100 * mentor['high']:.1f} %); "
-                 + "; ".join(f"{r['name'].split(' (')[0]} {100 * r['rate']:.1f} % "
-                             f"({100 * r['low']:.1f}-{100 * r['high']:.1f} %)" for r in rows[1:]))
+                 f"(95 % CI {100 * mentor['low']:.1f}-{100 * mentor['high']:.1f} %)"
+                 + "".join(f"; {r['name'].split(' (')[0]} {100 * r['rate']:.1f} % "
+                           f"({100 * r['low']:.1f}-{100 * r['high']:.1f} %)" for r in rows[1:]))
         revisions = []
         for name, s in scenarios.items():
             for r in s["revisions"]:
