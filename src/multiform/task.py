@@ -64,11 +64,22 @@ class Task:
     spec: str = ""                              # how load_task found it (set by load_task)
 
     def physical_success(self, trace: Any) -> bool:
-        """The task done, judged on the simulated world itself (the experimenter's check)."""
+        """The task done, judged on the simulated world itself (the experimenter's check).
+
+        A trial's trace ends when the net stops: at a final place (success or failure) or at the
+        skill's ``max_duration``, not at a fixed time. Judge what happened over the whole trace
+        (e.g. "upright for 5 s at some point"), not only its last samples: a skill that gives up
+        early ends its trace early too, and its last samples may look fine."""
         raise NotImplementedError(f"task {self.TASK or type(self).__name__} has no physical_success")
 
     def make_mentor(self, **kwargs: Any) -> Any:
-        """A scripted mentor (:class:`multiform.demos.episode.Mentor`): ``reset``, ``act``, ``label``."""
+        """A scripted mentor (:class:`multiform.demos.episode.Mentor`), made once per recording process:
+        its ``name`` (stored with its episodes and labels), ``reset(obs, rng)`` at each
+        demonstration (``rng`` seeded from the demonstration's seed; a ``reset`` that takes a
+        ``seed`` keyword is told the seed too), ``act(obs, info, t)`` -> (command, transition),
+        ``finished()``, ``label(episode)`` -> segment labels, and optionally ``outcome``
+        (``"success"``/``"failure"``), its verdict on the whole attempt. ``kwargs`` come from
+        :func:`multiform.demos.record.record_many`'s ``mentor_kwargs``."""
         raise InvalidInput(f"task {self.TASK} has no scripted mentor; record demonstrations yourself", element="task")
 
     def demo_options(self, seed: int) -> dict[str, Any]:
@@ -85,8 +96,10 @@ class Task:
         return None
 
     def evaluation_specs(self, n: int, seed: int, push_fraction: float) -> list:
-        """``n`` evaluation trials (:class:`multiform.adapt.evaluation.TrialSpec`); every trial whose
-        index falls in ``push_fraction`` gets :meth:`push`."""
+        """``n`` evaluation trials (:class:`multiform.adapt.evaluation.TrialSpec`): trial ``i`` starts
+        from seed ``50000000 + 100000 * seed + i`` (never a demonstration's, ``100000 * seed + i``)
+        with :meth:`trial_options` of that seed; every ``round(1 / push_fraction)``-th trial,
+        from the first, gets :meth:`push`."""
         from .adapt.evaluation import TrialSpec
         every = 0 if push_fraction <= 0 else max(1, int(round(1.0 / push_fraction)))
         out = []
