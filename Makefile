@@ -9,7 +9,7 @@ RUN_STAMP := $(VENV)/.installed-run
 LOCK   := requirements.lock
 export MUJOCO_GL ?= egl
 
-.PHONY: demo test test-slow test-lerobot bench setup lock clean
+.PHONY: demo test test-slow test-interop test-lerobot bench setup lock clean
 
 # The demo needs the runtime dependencies only; the tests also their extras.
 demo: $(RUN_STAMP)
@@ -21,16 +21,21 @@ test: $(STAMP)
 test-slow: $(STAMP)
 	$(BIN)/pytest -q -m slow
 
-# LeRobot pins its own torch, torchvision and rerun releases: it gets an environment of its own
-# (about 8 GB, 10 minutes to build), used only to load multiform's exports with LeRobot's own class.
-LEROBOT_VENV := .venv-lerobot
-$(LEROBOT_VENV)/.installed:
-	test -x $(LEROBOT_VENV)/bin/python || $(PYTHON) -m venv $(LEROBOT_VENV)
-	$(LEROBOT_VENV)/bin/python -m pip install -q 'lerobot==0.4.4'
+# LeRobot and robomimic pin torch and torchvision releases of their own (torchvision's PyPI builds
+# need the CUDA torch, which cannot sit beside the CPU torch of .venv): they get one environment of
+# their own (about 8.5 GB; built in 3-10 minutes), used only to load multiform's exports with
+# LeRobot's own LeRobotDataset and robomimic's own file_utils and SequenceDataset.
+INTEROP_VENV := .venv-interop
+$(INTEROP_VENV)/.installed:
+	test -x $(INTEROP_VENV)/bin/python || $(PYTHON) -m venv $(INTEROP_VENV)
+	$(INTEROP_VENV)/bin/python -m pip install -q 'lerobot==0.4.4' 'six>=1.16' 'h5py>=3.10' 'matplotlib>=3.8'
+	$(INTEROP_VENV)/bin/python -m pip install -q --no-deps robomimic==0.3.0
 	touch $@
 
-test-lerobot: $(STAMP) $(LEROBOT_VENV)/.installed
-	MULTIFORM_LEROBOT_PYTHON=$(LEROBOT_VENV)/bin/python $(BIN)/pytest -q -m lerobot
+test-interop: $(STAMP) $(INTEROP_VENV)/.installed
+	MULTIFORM_INTEROP_PYTHON=$(INTEROP_VENV)/bin/python $(BIN)/pytest -q -m interop
+
+test-lerobot: test-interop
 
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done
@@ -45,7 +50,7 @@ $(RUN_STAMP): pyproject.toml $(LOCK) scripts/system-deps.sh
 	touch $@
 
 $(STAMP): $(RUN_STAMP)
-	$(BIN)/python -m pip install -q -e '.[test,lerobot,interop,view,ray]' -c $(LOCK)
+	$(BIN)/python -m pip install -q -e '.[test,teleop,lerobot,interop,view,ray,video]' -c $(LOCK)
 	$(BIN)/python -m pip install -q --no-deps robomimic==0.3.0
 	touch $@
 
@@ -55,4 +60,4 @@ lock:
 	$(BIN)/python scripts/lock.py > $(LOCK).new && mv $(LOCK).new $(LOCK)
 
 clean:
-	rm -rf $(VENV) $(LEROBOT_VENV) runs .pytest_cache .hypothesis
+	rm -rf $(VENV) $(INTEROP_VENV) runs .pytest_cache .hypothesis

@@ -31,3 +31,17 @@ def test_the_api_page_is_up_to_date():
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     assert (ROOT / "docs" / "api.md").read_text() == mod.render(), "run python scripts/api_docs.py"
+
+
+def test_mentor_rate_runs_the_mentor_from_the_evaluation_starts():
+    task = str(ROOT / "examples" / "mountain_car" / "mountain_car.py") + ":MountainCar"
+    r = multiform.mentor_rate(task, trials=4, seed=1, workers=1)
+    assert r["seeds"] == [50_100_000, 50_100_001, 50_100_002, 50_100_003]
+    assert r["trials"] == 4 and r["successes"] == r["outcomes"].count("success") and 0 <= r["low"] <= r["rate"]
+    assert [s.seed for s in multiform.load_task(task).evaluation_specs(4, 1, 0.5)] == r["seeds"]
+
+
+def test_import_multiform_imports_neither_gymnasium_nor_mujoco_and_registers_nothing():
+    code = "import sys, multiform; print(sorted(m for m in ('gymnasium', 'mujoco') if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"

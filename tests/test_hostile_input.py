@@ -1,4 +1,4 @@
-"""Every command on hostile input: exit status 2, one error line naming the culprit (a file with
+"""Every command on hostile input: exit status 2 (66 for an input that does not exist), one error line naming the culprit (a file with
 several problems lists the others below it), no traceback, nothing written or changed on disk, no
 module imported from data."""
 
@@ -16,7 +16,7 @@ import h5py
 import numpy as np
 import pytest
 
-from multiform.cli import main
+from multiform.cli import EXIT_MISSING, main
 from multiform.demos.dataset import write_dataset
 from multiform.demos.record import record_many
 from multiform.job import train_model
@@ -157,9 +157,9 @@ CASES: list[tuple[str, Callable[[Path], tuple[list[str], str]]]] = [
     ("check_not_yaml", lambda w: do(["check", skill_file(w, "skill: [unclosed")], "bad.yaml")),
     ("check_yaml_list", lambda w: do(["check", skill_file(w, "- a\n- b\n")], "bad.yaml")),
     ("check_deep_yaml", lambda w: do(["check", skill_file(w, "a: " + "[" * 20000 + "]" * 20000)], "bad.yaml")),
-    ("draw_missing_version", lambda w: do(["draw", "pendulum", "--version", "5"], "version 5")),
+    ("draw_missing_version", lambda w: do(["draw", "pendulum", "--net-version", "5"], "version 5")),
     ("draw_history_not_object", lambda w: do((w / "h.jsonl").write_text("[1, 2]\n"),
-                                             ["draw", "pendulum", "--history", str(w / "h.jsonl"), "--version", "1"],
+                                             ["draw", "pendulum", "--history", str(w / "h.jsonl"), "--net-version", "1"],
                                              "h.jsonl")),
     ("net_history_bad_json", lambda w: do((w / "h.jsonl").write_text("{nope\n"),
                                           ["net", "history", "pendulum", "--history", str(w / "h.jsonl")], "h.jsonl")),
@@ -170,7 +170,7 @@ CASES: list[tuple[str, Callable[[Path], tuple[list[str], str]]]] = [
         (w / "h.jsonl").write_text(json.dumps({"version": 1, "operator": "set_lambda", "target": "t99", "reason": "x",
                                                "params": {"transition": "t99", "lambda": 0.5}})),
         ["net", "diff", "pendulum", "0", "1", "--history", str(w / "h.jsonl")], "record 1")),
-    ("net_export_missing_version", lambda w: do(["net", "export", "pendulum", "--version", "3"], "version 3")),
+    ("net_export_missing_version", lambda w: do(["net", "export", "pendulum", "--net-version", "3"], "version 3")),
     ("net_import_missing", lambda w: do(["net", "import", str(w / "none.pnml")], "none.pnml")),
     ("net_import_not_xml", lambda w: do((w / "x.pnml").write_text("not xml at all"), ["net", "import", str(w / "x.pnml")],
                                         "x.pnml")),
@@ -276,7 +276,7 @@ CASES: list[tuple[str, Callable[[Path], tuple[list[str], str]]]] = [
     ("evaluate_not_a_model", lambda w: do(["evaluate", str(w / "cwd")], "skill.yaml")),
     ("evaluate_trials_zero", lambda w: do(["evaluate", str(w / "model"), "--trials", "0"], "--trials")),
     ("evaluate_push_fraction", lambda w: do(["evaluate", str(w / "model"), "--push-fraction", "2"], "--push-fraction")),
-    ("evaluate_missing_version", lambda w: do(["evaluate", str(w / "model"), "--version", "4"], "version 4")),
+    ("evaluate_missing_version", lambda w: do(["evaluate", str(w / "model"), "--net-version", "4"], "version 4")),
     ("evaluate_tampered_law", lambda w: do((w / "model" / "laws" / "swing_up.npz").write_bytes(b"x"),
                                            ["evaluate", str(w / "model")], "swing_up.npz")),
     ("evaluate_out_is_a_file", lambda w: do(["evaluate", str(w / "model"), "--out", str(w / "demos.h5")], "demos.h5")),
@@ -289,6 +289,11 @@ CASES: list[tuple[str, Callable[[Path], tuple[list[str], str]]]] = [
     ("demo_out_under_a_file", lambda w: do(["demo", "pendulum", "--demos", "2", "-o", str(w / "demos.h5" / "run")],
                                            "run")),
 ]
+
+
+# inputs that do not exist: their own exit status (66), every other case 2
+MISSING = {"check_missing_file", "net_import_missing", "demos_info_missing", "train_missing_skill",
+           "replay_missing_source", "demos_export_missing", "record_task_no_file", "report_no_metrics"}
 
 
 def run(argv: list[str]) -> int:
@@ -307,7 +312,7 @@ def test_hostile_input_is_refused_in_one_line_and_changes_nothing(work, case, ca
     before = snapshot(work)
     code = run(argv)
     err = capsys.readouterr().err
-    assert code == 2, err
+    assert code == (EXIT_MISSING if case in MISSING else 2), err
     first, *more = err.strip().splitlines()
     assert first.startswith("multiform") and "error" in first and culprit in first, err
     # a file with several problems lists the others, one per line, each naming the file again

@@ -7,7 +7,12 @@ The three forms of teaching live in three sub-packages:
 * :mod:`multiform.adapt` — diagnosis and repair of the net from practice (the adaptive part).
 
 The names below are the public API (``import multiform`` stays cheap: each is imported on first
-use). A user's experiment is a :class:`Task`; docs/api.md lists every name with its docstring.
+use, and importing the package registers nothing and imports neither Gymnasium nor MuJoCo; it only
+picks MuJoCo's offscreen OpenGL backend, see :mod:`multiform._gl`). A user's experiment is a
+:class:`Task`; docs/api.md lists every name with its docstring.
+
+The envs register with Gymnasium when :mod:`multiform.envs` is imported, which
+``gymnasium.make("multiform.envs:multiform/ArmPendulum-v0")`` does by itself.
 """
 
 from __future__ import annotations
@@ -17,7 +22,7 @@ from typing import Any
 
 __version__ = "0.1.0"
 
-from .envs import rendering as _rendering  # noqa: E402,F401  (MuJoCo's offscreen GL, chosen before mujoco loads)
+from . import _gl  # noqa: E402,F401  (MuJoCo's offscreen GL, chosen before mujoco loads)
 
 _EXPORTS = {
     # the experiment
@@ -28,13 +33,16 @@ _EXPORTS = {
     # demonstrations
     "Episode": "multiform.demos.episode", "SegmentLabel": "multiform.demos.episode",
     "write_dataset": "multiform.demos.dataset", "read_dataset": "multiform.demos.dataset",
+    "Dataset": "multiform.demos.dataset",
     "record_episode": "multiform.demos.record", "Mentor": "multiform.demos.episode",
     # the verbs
     "record": "multiform.api", "train": "multiform.api", "open_model": "multiform.api", "run_trial": "multiform.api",
-    "practise": "multiform.api", "evaluate": "multiform.api",
+    "practise": "multiform.api", "evaluate": "multiform.api", "mentor_rate": "multiform.api",
+    "scenario_names": "multiform.api", "export_demos": "multiform.api", "import_demos": "multiform.api",
     # what they return or run
     "SkillModel": "multiform.model", "Executor": "multiform.runtime.executor", "Trace": "multiform.runtime.trace",
     "Job": "multiform.job", "JobConfig": "multiform.job", "InvalidInput": "multiform.errors",
+    "MissingInput": "multiform.errors",
 }
 __all__ = sorted(_EXPORTS)
 

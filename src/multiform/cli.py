@@ -1,9 +1,23 @@
-"""The ``multiform`` command: one entry point, one sub-command per job.
+"""The ``multiform`` command: one entry point, one sub-command per job, a thin shell over
+:mod:`multiform.api` (the options are the API's parameters, with its defaults).
 
-Exit status: 0 success; 2 bad input: a bad argument, file or model directory, a file that cannot be
-written, a folder another command is writing (one line ``multiform: error: <culprit>: <what is
-wrong>``, no traceback, nothing written); 1 anything else (an internal error: one line, and the
-traceback with ``--debug``).
+Conventions, the same for every sub-command:
+
+* **Exit status**: 0 success; 2 the input is wrong (a bad argument, a malformed file or model
+  directory, an output that exists without ``--overwrite``, a file that cannot be written, a folder
+  another command is writing); 66 an input file or folder does not exist (``EX_NOINPUT`` of BSD's
+  sysexits); 1 anything else (an internal error: one line, the traceback with ``--debug``); 130
+  interrupted; 141 the reader of the output went away. An error is one line
+  ``multiform: error: <culprit>: <what is wrong>``, and nothing is written.
+* **Outputs**: a command never replaces an existing output file or folder unless ``--overwrite``
+  is given, and then only once the new one is complete. Folders that a command resumes (a run
+  folder of ``demo``, a practice folder, a model directory that ``label`` adds to) are not outputs
+  to replace.
+* **Names**: ``TASK`` and ``--task`` always name a task (bundled, installed, ``package.module:NAME``
+  or ``path/to/file.py:NAME``; ``module:NAME`` also finds modules in the current folder);
+  ``--net-version`` a version of a net; ``--version`` is the program's version.
+* **Completion**: ``multiform --print-completion bash`` (or zsh, tcsh) prints a completion script
+  (by shtab), e.g. ``multiform --print-completion bash > ~/.local/share/bash-completion/completions/multiform``.
 """
 
 from __future__ import annotations
@@ -18,20 +32,24 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import argparse  # noqa: E402
+import contextlib  # noqa: E402
 import sys  # noqa: E402
-from collections.abc import Sequence  # noqa: E402
+from collections.abc import Callable, Iterator, Sequence  # noqa: E402
 from pathlib import Path  # noqa: E402
+from typing import Any  # noqa: E402
 
 from threadpoolctl import threadpool_limits  # noqa: E402
 
-from .errors import InvalidInput  # noqa: E402
+from . import api, cli_options  # noqa: E402
+from .cli_options import JOB_DEFAULTS  # noqa: E402,F401  (the main job's sizes, as JobConfig has them)
+from .errors import InvalidInput, MissingInput  # noqa: E402
 
 # The package's own imports load NumPy's BLAS before the variables above are read: limit it here too.
 threadpool_limits(1)
 
-EXIT_BAD_INPUT = 2
+EXIT_BAD_INPUT = cli_options.EXIT_BAD_INPUT
+EXIT_MISSING = 66              # EX_NOINPUT: an input file or folder does not exist
 EXIT_BROKEN_PIPE = 141         # as a shell reports a process ended by SIGPIPE
-MAX_SEED = 2**31 - 1
 
 
 def _print_problems(exc: InvalidInput) -> None:
@@ -43,54 +61,36 @@ def _print_problems(exc: InvalidInput) -> None:
         print(f"  {p}", file=sys.stderr)
 
 
-def _count(low: int, high: int):
-    """An argparse type: a whole number in ``low..high`` (numbers that size work or memory are bounded)."""
-    def parse(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-        if not low <= v <= high:
-            raise argparse.ArgumentTypeError(f"must be in {low}..{high}, got {v}")
-        return v
-    return parse
-
-
-def _number(low: float, high: float, low_open: bool = False):
-    """An argparse type: a finite number in ``low..high`` (above ``low`` with ``low_open``)."""
-    def parse(text: str) -> float:
-        import math
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-        if not (math.isfinite(v) and (v > low if low_open else v >= low) and v <= high):
-            want = f"above {low:g}" if low_open else f"in {low:g}..{high:g}"
-            if low_open and high != float("inf"):
-                want += f" and at most {high:g}"
-            raise argparse.ArgumentTypeError(f"must be a finite number {want}, got {text}")
-        return v
-    return parse
-
-
-_positive = _number(0.0, float("inf"), low_open=True)
-_fraction = _number(0.0, 1.0)
-
-
-def _add_ray(p: argparse.ArgumentParser) -> None:
-    """``--ray ADDRESS``: run the independent trials or demonstrations as Ray tasks."""
-    p.add_argument("--ray", metavar="ADDRESS", default=None,
-                   help="run the trials as Ray tasks (pip install 'multiform[ray]'): 'auto' joins the cluster this "
-                        "machine belongs to, 'local' starts one here with --workers CPUs, or HOST:PORT / "
-                        "ray://HOST:PORT; --workers then counts nothing else")
-
-
 def _default_output(name: str, suffix: str) -> Path:
     """A default output file in the current folder, named for ``name`` (a net's name, which comes
     from a file and may hold a path): only its base name, in safe characters."""
     import re
     base = re.sub(r"[^A-Za-z0-9_.-]", "_", Path(name).name).lstrip(".") or "net"
     return Path(base[:100] + suffix)
+
+
+def _output(args: argparse.Namespace, path: Path, kind: str = "file") -> Path:
+    """``path`` as a new output of this command (the one overwrite policy of :mod:`multiform.api`)."""
+    from .api import _new_output
+    return _new_output(path, args.overwrite, kind)
+
+
+@contextlib.contextmanager
+def _progress(desc: str) -> Iterator[Callable[[int, int], None]]:
+    """A progress callback ``(done, total)`` whose bar appears with the first finished item, so a
+    command refused before any work prints no bar."""
+    bar: list[Any] = []
+
+    def update(done: int, total: int) -> None:
+        if not bar:
+            from tqdm import tqdm
+            bar.append(tqdm(total=total, desc=desc, dynamic_ncols=True))
+        bar[0].update(done - bar[0].n)
+    try:
+        yield update
+    finally:
+        if bar:
+            bar[0].close()
 
 
 # -- net commands ----------------------------------------------------------------------------------
@@ -119,16 +119,16 @@ def _net_version(args: argparse.Namespace, version: int | None):
 
 
 def _chosen_version(args: argparse.Namespace, what: str) -> int:
-    """The version ``--version`` names, else the history's latest; says which on stderr."""
+    """The version ``--net-version`` names, else the history's latest; says which on stderr."""
     from .petri.revision import History
     from .petri.skillfile import resolve_skill
     latest = len(History(resolve_skill(args.skill), args.history).revisions())
-    if args.version is None:
-        args.version = latest
+    if args.net_version is None:
+        args.net_version = latest
         if latest:
-            print(f"{what} version {latest}, the latest of the history (--version 0 for the original)",
+            print(f"{what} version {latest}, the latest of the history (--net-version 0 for the original)",
                   file=sys.stderr)
-    return args.version if args.version >= 0 else latest + 1 + args.version
+    return args.net_version if args.net_version >= 0 else latest + 1 + args.net_version
 
 
 def cmd_draw(args: argparse.Namespace) -> int:
@@ -138,7 +138,7 @@ def cmd_draw(args: argparse.Namespace) -> int:
     changed: set[str] = set()
     if version:
         changed = changed_elements(_net_version(args, version - 1), apn)
-    out = Path(args.out) if args.out else _default_output(apn.name, ".svg")
+    out = _output(args, Path(args.out) if args.out else _default_output(apn.name, ".svg"))
     draw(apn, out, changed=changed, title=f"{apn.name}" + (f" (version {version})" if version else ""))
     print(f"wrote {out}")
     return 0
@@ -166,7 +166,7 @@ def cmd_net_export(args: argparse.Namespace) -> int:
     from .petri.pnml import write_pnml
     version = _chosen_version(args, "exporting")
     apn = _net_version(args, version)
-    out = Path(args.out) if args.out else _default_output(apn.name, ".pnml")
+    out = _output(args, Path(args.out) if args.out else _default_output(apn.name, ".pnml"))
     write_pnml(apn, out)
     print(f"wrote {out} (version {version})")
     return 0
@@ -177,37 +177,25 @@ def cmd_net_import(args: argparse.Namespace) -> int:
     from .petri.pnml import read_pnml
     from .petri.skillfile import dump_skill
     apn = read_pnml(args.pnml)
-    out = Path(args.out) if args.out else _default_output(apn.name, ".yaml")
+    out = _output(args, Path(args.out) if args.out else _default_output(apn.name, ".yaml"))
     write_text(out, dump_skill(apn))
     print(f"wrote {out}")
     return 0
 
 
-# -- demonstrations, training, practice, the main job ---------------------------------------------
-
-def _bar(total: int, desc: str):
-    from tqdm import tqdm
-    return tqdm(total=total, desc=desc, dynamic_ncols=True)
-
+# -- demonstrations --------------------------------------------------------------------------------
 
 def cmd_record(args: argparse.Namespace) -> int:
-    from .demos.dataset import write_dataset
-    from .demos.record import record_many
-    from .lock import check_writable, exclusive
+    from .lock import check_writable
     from .task import load_task
     task = load_task(args.task)
-    out = Path(args.out)
-    if out.exists() and not args.overwrite:
-        raise InvalidInput("exists; add --overwrite to replace it, or choose another file", file=str(out))
-    if out.is_dir():
-        raise InvalidInput("is a folder; give a file name (.h5)", file=str(out))
-    check_writable(out)               # before recording, not after
-    seeds = [args.seed * 100_000 + i for i in range(args.demos)]
-    with exclusive(out):
-        with _bar(len(seeds), f"recording {args.task} demos") as bar:
-            eps = record_many(task.spec or task, seeds, task.DEMO_ENV_KWARGS, workers=args.workers,
-                              progress=lambda i, n: bar.update(1), ray=args.ray)
-        write_dataset(out, eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)
+    check_writable(Path(args.out))        # the command makes no folder: a mistyped path is refused
+    n = task.DEMOS if args.demos is None else args.demos
+    with _progress(f"recording {task.TASK} demos") as progress:
+        out = api.record(task, args.out, demos=n, seed=args.seed, workers=args.workers, overwrite=args.overwrite,
+                         progress=progress, ray=args.ray)
+    from .demos.dataset import read_dataset
+    eps = read_dataset(out).episodes
     ok = sum(e.outcome == "success" for e in eps)
     print(f"wrote {out}: {len(eps)} demos, the mentor succeeded in {ok} ({100 * ok / len(eps):.0f} %)")
     return 0
@@ -215,24 +203,19 @@ def cmd_record(args: argparse.Namespace) -> int:
 
 def cmd_demos_export(args: argparse.Namespace) -> int:
     from .demos.dataset import read_dataset
-    from .demos.lerobot import write_lerobot
+    out = api.export_demos(args.demos, args.out, fps=args.fps, task_text=args.task_text or "", overwrite=args.overwrite)
     ds = read_dataset(args.demos)
-    out = write_lerobot(args.out, ds.episodes, ds.skill, ds.env_name, ds.env_kwargs, task=args.task or "")
-    print(f"wrote {out}: LeRobot v3 dataset, {len(ds)} episodes, "
-          f"{sum(ep.num_samples for ep in ds)} frames at {round(1 / ds.episodes[0].dt)} fps")
+    import json
+    info = json.loads((out / "meta" / "info.json").read_text())
+    print(f"wrote {out}: LeRobot v3 dataset, {len(ds)} episodes, {info['total_frames']} frames at {info['fps']} fps")
     return 0
 
 
 def cmd_demos_import(args: argparse.Namespace) -> int:
-    from .demos.dataset import write_dataset
-    from .demos.lerobot import read_lerobot
     split = lambda text: [n.strip() for n in text.split(",")] if text else None  # noqa: E731
-    eps, meta = read_lerobot(args.dataset, split(args.variables), split(args.commands), args.state_key,
-                             args.action_key, args.transition)
-    env = meta.get("env_args", {}) if isinstance(meta.get("env_args"), dict) else {}
-    skill = args.skill or str(meta.get("skill") or Path(args.dataset).name)
-    env_name = args.env or str(env.get("env_name") or "")
-    write_dataset(args.out, eps, skill, env_name, env.get("env_kwargs") or {}, mentor="lerobot import")
+    ds = api.import_demos(args.dataset, args.out, split(args.variables), split(args.commands), args.state_key,
+                          args.action_key, args.transition, skill=args.skill, env=args.env, overwrite=args.overwrite)
+    eps = ds.episodes
     ok = sum(ep.outcome == "success" for ep in eps)
     print(f"wrote {args.out}: {len(eps)} demos ({ok} successful), variables "
           f"{', '.join(eps[0].observation_names)}; commands {', '.join(eps[0].command_names)}")
@@ -274,14 +257,14 @@ def cmd_teleop(args: argparse.Namespace) -> int:
     for flag, value in (("--time-scale", args.time_scale), ("--max-duration", args.max_duration)):
         if not value > 0:
             raise InvalidInput(f"must be positive, got {value}", element=flag)
-    if out.exists() and not args.append:
-        raise InvalidInput("exists; add --append to add the new demonstration to it, or choose another file",
-                           file=str(out))
+    if out.exists() and not (args.append or args.overwrite):
+        raise InvalidInput("exists; add --append to add the new demonstration to it, --overwrite to replace it, "
+                           "or choose another file", file=str(out))
     if _TELEOP_SCRIPT is None and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         raise InvalidInput("needs a display (no DISPLAY or WAYLAND_DISPLAY is set); run it on a desktop session",
                            element="teleop")
     episodes, skill, env_kwargs, mentor = [], task.SKILL, dict(task.DEMO_ENV_KWARGS), args.labeller
-    if out.exists():
+    if out.exists() and args.append:
         ds = read_dataset(out)
         if ds.env_name != task.ENV_ID or ds.env_kwargs.get("action_mode", "ee") != "ee" \
                 or tuple(ds.meta["observation_names"]) != tuple(ArmPendulumEnv.observation_names):
@@ -343,102 +326,61 @@ def cmd_label(args: argparse.Namespace) -> int:
     return 0
 
 
+# -- training, practice, evaluation ----------------------------------------------------------------
+
 def cmd_train(args: argparse.Namespace) -> int:
-    from .demos.dataset import read_dataset
-    from .job import train_model
-    from .model import SkillModel, staged_model_dir
-    from .petri.skillfile import load_skill
-    from .task import load_task, task_for_env
-    task = load_task(args.task) if args.task else None      # first: a user's task registers its env
-    load_skill(args.skill)
-    ds = read_dataset(args.demos)
-    inverse, env_kwargs = None, ds.env_kwargs
-    if args.inverse_model:            # decided before anything is written
-        if task is None:
-            try:
-                task = task_for_env(ds.env_name)
-            except InvalidInput:
-                task = None
-        if task is None or getattr(task, "train_inverse_model", None) is None:
-            raise InvalidInput(f"no inverse-model trainer for {ds.env_name}; train without --inverse-model",
-                               element="--inverse-model")
-        inverse, env_kwargs = task.train_inverse_model, task.robot_env_kwargs(True)
-    with staged_model_dir(args.out) as partial:
-        model = SkillModel.create(partial, args.skill, args.demos, ds.env_name, env_kwargs)
-        print(f"training {model.apn.name} from {len(ds)} demos into {args.out}")
-        train_model(model, seed=args.seed, inverse_trainer=inverse, beside=True)
+    api.train(args.skill, args.demos, args.out, task=args.task, seed=args.seed, inverse_model=args.inverse_model,
+              overwrite=args.overwrite)
     print(f"model ready: {args.out}")
     return 0
 
 
+def _show_trial(state: Any, trial: Any) -> None:
+    """One line per practice trial, and what the mentor and the repairs did after it."""
+    mark = "ok  " if trial.success else "FAIL"
+    print(f"trial {trial.trial:3d} v{trial.net_version} {mark} {trial.outcome:8s} "
+          f"judges {trial.judge_score}  fired {' '.join(trial.fired[:12])}"
+          + (" …" if len(trial.fired) > 12 else ""), flush=True)
+    if trial.mentor is not None:
+        print(f"  the mentor graded it: {trial.mentor.agree} of {trial.mentor.stays} stays as the robot did",
+              flush=True)
+    if trial.takeover is not None and trial.takeover.time is not None:
+        print(f"  the mentor took over where the robot knew least, at {trial.takeover.time} s", flush=True)
+    if state.revisions and state.revisions[-1].after_trial == trial.trial:
+        r = state.revisions[-1]
+        print(f"  revision {r.version}: {r.operator} {r.target} — {r.reason}", flush=True)
+
+
 def cmd_practice(args: argparse.Namespace) -> int:
-    from .model import SkillModel
-    from .task import load_task, task_for_env
-    task = load_task(args.task) if args.task else None      # first: a user's task registers its env
-    model = SkillModel(args.model, env_modules=args.env_module)
-    task = task or task_for_env(model.manifest["env"])
-    args.task = task.TASK
-    names = [s.name for s in task.scenarios()]
-    if args.scenario not in names:
-        raise InvalidInput(f"unknown scenario {args.scenario!r}; {args.task} has: {', '.join(names)}",
-                           element="--scenario")
-    index = names.index(args.scenario)
-    sc = task.scenarios()[index]
-    folder = Path(args.out or Path(args.model) / "practice" / args.scenario)
-    practice = sc.practice(model, folder, args.max_trials, args.seed + index, observe=_views(args, folder / "view"))
-
-    def show(state, trial):
-        mark = "ok  " if trial.success else "FAIL"
-        print(f"trial {trial.trial:3d} v{trial.net_version} {mark} {trial.outcome:8s} "
-              f"judges {trial.judge_score}  fired {' '.join(trial.fired[:12])}"
-              + (" …" if len(trial.fired) > 12 else ""), flush=True)
-        if trial.mentor is not None:
-            print(f"  the mentor graded it: {trial.mentor.agree} of {trial.mentor.stays} stays as the robot did",
-                  flush=True)
-        if trial.takeover is not None and trial.takeover.time is not None:
-            print(f"  the mentor took over where the robot knew least, at {trial.takeover.time} s", flush=True)
-        if state.revisions and state.revisions[-1].after_trial == trial.trial:
-            r = state.revisions[-1]
-            print(f"  revision {r.version}: {r.operator} {r.target} — {r.reason}", flush=True)
-
-    state = practice.run(progress=show, stop_after=args.stop_after)
+    model = api.open_model(args.model, env_modules=tuple(args.env_module))
+    observe = (lambda folder: _views(args, folder / "view")) if args.view is not None else None
+    state = api.practise(model, args.task, scenario=args.scenario, out=args.out, max_trials=args.max_trials,
+                         seed=args.seed, stop_after=args.stop_after, progress=_show_trial, observe=observe)
     print(f"{len(state.trials)} trials; {state.stop_reason or 'stopped'}")
     return 1 if state.stop_reason.startswith("fault") else 0
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    from .evaluation import Variant, evaluate
-    from .io import write_json
-    from .lock import check_writable
-    from .model import SkillModel
-    from .task import load_task, task_for_env
-    task = load_task(args.task) if args.task else None      # first: a user's task registers its env
-    model = SkillModel(args.model, env_modules=args.env_module)
-    task = task or task_for_env(model.manifest["env"])
-    name = task.TASK
-    if args.version is not None:
-        model.history.version(args.version)          # refuses a version the model does not have
-    model.verify()
-    out = Path(args.out) / "evaluation.json" if args.out else None
-    if out is not None:
-        if Path(args.out).exists() and not Path(args.out).is_dir():
-            raise InvalidInput("is a file; give a folder", file=str(args.out))
-        check_writable(out if Path(args.out).is_dir() else Path(args.out))   # the folder is made at the end
-    specs = task.evaluation_specs(args.trials, args.seed, args.push_fraction)
-    variant = Variant(f"{model.apn.name} v{model.version if args.version is None else args.version}",
-                      str(Path(args.model).resolve()), net_version=args.version, env_modules=tuple(args.env_module))
-    with _bar(len(specs), f"evaluating {name}") as bar:
-        res = evaluate(task.spec or task, variant, specs, workers=args.workers, progress=lambda i, n: bar.update(1),
-                       ray=args.ray)
+    model = api.open_model(args.model, env_modules=tuple(args.env_module))
+    with _progress("evaluating") as progress:
+        res = api.evaluate(model, args.task, trials=args.trials, seed=args.seed, push_fraction=args.push_fraction,
+                           workers=args.workers, version=args.net_version, out=args.out, overwrite=args.overwrite,
+                           progress=progress, ray=args.ray)
     pushed = f"; pushed {res['pushed']['successes']}/{res['pushed']['trials']}" if res.get("pushed") else ""
     print(f"success {100 * res['rate']:.1f} % ({res['successes']}/{res['trials']}; 95 % CI {100 * res['low']:.1f}-"
           f"{100 * res['high']:.1f} %){pushed}; the robot's own verdict agreed on {100 * res['agreement']:.1f} %"
           + (f"; {res['faults']} fault(s)" if res["faults"] else ""))
-    if out is not None:
-        write_json(out, {"model": str(args.model), "task": name, "seed": args.seed, "push_fraction": args.push_fraction,
-                         "net_version": variant.net_version, **res})
-        print(f"wrote {out}")
+    if args.out:
+        print(f"wrote {Path(args.out) / 'evaluation.json'}")
     return 1 if res["faults"] else 0
+
+
+def cmd_mentor(args: argparse.Namespace) -> int:
+    with _progress("the mentor") as progress:
+        r = api.mentor_rate(args.task, trials=args.trials, seed=args.seed, workers=args.workers, progress=progress)
+    print(f"the mentor succeeded in {r['successes']}/{r['trials']} of the evaluation starts: {100 * r['rate']:.1f} % "
+          f"(95 % CI {100 * r['low']:.1f}-{100 * r['high']:.1f} %)")
+    return 0
 
 
 def _views(args: argparse.Namespace, folder: Path):
@@ -448,12 +390,6 @@ def _views(args: argparse.Namespace, folder: Path):
     from .view.stream import trial_views
     print(f"the view: each trial saved in {folder}" + ("" if args.view == "spawn" else f", streamed to {args.view}"))
     return trial_views(folder, live=args.view)
-
-
-def _add_view(p: argparse.ArgumentParser, what: str) -> None:
-    p.add_argument("--view", nargs="?", const="spawn", default=None, metavar="URL",
-                   help=f"stream {what} to a rerun viewer (a local one with a display, or the viewer at URL, e.g. "
-                        "rerun+http://host:9876/proxy) and save it as .rrd; needs pip install 'multiform[view]'")
 
 
 def _every(fps: float) -> int:
@@ -466,20 +402,23 @@ def cmd_replay(args: argparse.Namespace) -> int:
     from .view.replay import replay_demo, replay_trace, to_recording, to_video
     src = Path(args.source)
     if not src.exists():
-        raise InvalidInput("does not exist", file=str(src))
+        raise MissingInput("does not exist", file=str(src))
+    stem = f"{src.stem}_demo{args.demo}" if src.suffix in (".h5", ".hdf5") else src.stem
+    video = _output(args, Path(args.video)) if args.video else None
+    rrd = None
+    if args.rrd or args.view is not None or not args.video:
+        rrd = _output(args, Path(args.rrd) if args.rrd else src.with_name(stem + ".rrd"))
     if src.suffix in (".h5", ".hdf5"):
         r = replay_demo(src, args.demo, every=_every(args.fps))
         print(f"replayed demo {args.demo} of {src}: {len(r.states)} samples, states as recorded "
               f"(largest difference {r.max_error:.3g})")
-        stem = f"{src.stem}_demo{args.demo}"
     else:
         r = replay_trace(src, args.model, every=_every(args.fps))
-        stem = src.stem
     try:
-        if args.video:
-            print(f"wrote {to_video(r, args.video)}")
-        if args.rrd or args.view is not None or not args.video:
-            print(f"wrote {to_recording(r, args.rrd or src.with_name(stem + '.rrd'), live=args.view)}")
+        if video is not None:
+            print(f"wrote {to_video(r, video)}")
+        if rrd is not None:
+            print(f"wrote {to_recording(r, rrd, live=args.view)}")
     finally:
         if r.env is not None:
             r.env.close()
@@ -488,8 +427,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     from .job import Job, JobConfig
-    ablations = JobConfig.ablation_trials if args.ablation_trials is None else args.ablation_trials
-    cfg = JobConfig(demos=args.demos, eval_trials=args.eval_trials, ablation_trials=ablations,
+    cfg = JobConfig(demos=args.demos, eval_trials=args.eval_trials, ablation_trials=args.ablation_trials,
                     practice_max_trials=args.max_trials, workers=args.workers, seed=args.seed,
                     videos=not args.no_video, inverse_model=not args.reference_controller,
                     learn=args.learn_from_practice, practice_budget=args.practice_budget, ray=args.ray)
@@ -521,266 +459,24 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
-# -- the parser ------------------------------------------------------------------------------------
-
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(
-        prog="multiform",
-        description="Teach a robot a dynamic skill by definition (a Petri net), demonstration "
-                    "(GP control laws) and evaluation (SVM judges); the robot practises and repairs "
-                    "the definition itself.",
-        epilog="Start with `multiform demo pendulum --out runs/pendulum`. SKILL is a skill file "
-               "or the name of a bundled skill (pendulum, pendulum_strict, nunchaku).")
-    parser.add_argument("--version", action="version", version=f"multiform {_version()}")
-    parser.add_argument("--debug", action="store_true", help="show the traceback of an internal error")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True, parser_class=_Parser)
-
-    _add_net_commands(sub)
-    _add_demonstration_commands(sub)
-    _add_teaching_commands(sub)
-    _add_model_commands(sub)
-    _add_run_commands(sub)
-    _add_output_commands(sub)
-    return parser
-
-
-def _add_net_commands(sub: argparse._SubParsersAction) -> None:
-    """Check, draw and net: a skill's net, its versions, PNML."""
-    p = sub.add_parser("check", help="validate a skill file and analyse its net (exit 0 ok, 2 problems)")
-    p.add_argument("skill", help="skill file or bundled skill name")
-    p.add_argument("--max-states", type=_count(1, 10_000_000), default=10_000, help="cap on the reachability graph")
-    p.set_defaults(func=cmd_check)
-
-    p = sub.add_parser("draw", help="draw a skill's net (SVG/PNG by suffix)")
-    p.add_argument("skill")
-    p.add_argument("--out", "-o", help="output file (default <skill>.svg)")
-    p.add_argument("--history", help="revision history (default <skill>.history.jsonl beside the skill)")
-    p.add_argument("--version", "-v", type=_count(-1_000_000, 1_000_000), dest="version", default=None,
-                   help="net version to draw (0 = original; default the latest); its changes are highlighted")
-    p.set_defaults(func=cmd_draw)
-
-    net = sub.add_parser("net", help="net versions: diff, history, PNML export/import")
-    nsub = net.add_subparsers(dest="net_command", metavar="NET_COMMAND", required=True, parser_class=_Parser)
-    p = nsub.add_parser("diff", help="show two versions of a net side by side")
-    p.add_argument("skill")
-    p.add_argument("a", type=_count(-1_000_000, 1_000_000), help="first version (0 = original)")
-    p.add_argument("b", type=_count(-1_000_000, 1_000_000), help="second version (-1 = latest)")
-    p.add_argument("--history", help="revision history file")
-    p.add_argument("--width", type=_count(40, 1000), default=100)
-    p.set_defaults(func=cmd_net_diff)
-    p = nsub.add_parser("history", help="list the recorded revisions")
-    p.add_argument("skill")
-    p.add_argument("--history", help="revision history file")
-    p.set_defaults(func=cmd_net_history)
-    p = nsub.add_parser("export", help="export a net version as PNML")
-    p.add_argument("skill")
-    p.add_argument("--out", "-o")
-    p.add_argument("--history")
-    p.add_argument("--version", "-v", type=_count(-1_000_000, 1_000_000), dest="version", default=None,
-                   help="net version to export (0 = original; default the latest)")
-    p.set_defaults(func=cmd_net_export)
-    p = nsub.add_parser("import", help="import a PNML net as a skill file")
-    p.add_argument("pnml")
-    p.add_argument("--out", "-o")
-    p.set_defaults(func=cmd_net_import)
-
-
-def _add_demonstration_commands(sub: argparse._SubParsersAction) -> None:
-    """Record and demos: the scripted mentor's demonstrations and demonstration files."""
-    p = sub.add_parser("record", help="record scripted-mentor demonstrations of a task (HDF5)")
-    p.add_argument("task", help="a bundled task (pendulum, nunchaku), an installed one, package.module:NAME or path/to/file.py:NAME")
-    p.add_argument("--demos", type=_count(1, 1000), default=40, help="number of demonstrations")
-    p.add_argument("--out", "-o", required=True, help="output .h5 file")
-    p.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
-    p.add_argument("--workers", type=_count(1, 256), default=2, help="processes")
-    p.add_argument("--seed", type=_count(0, 40_000), default=0, help="demo i starts from seed 100000 * SEED + i")
-    _add_ray(p)
-    p.set_defaults(func=cmd_record)
-
-    demos = sub.add_parser("demos", help="inspect, export and import demonstration files")
-    dsub = demos.add_subparsers(dest="demos_command", metavar="DEMOS_COMMAND", required=True, parser_class=_Parser)
-    p = dsub.add_parser("info", help="count, durations, success fraction, samples per transition")
-    p.add_argument("demos")
-    p.add_argument("--json", action="store_true")
-    p.set_defaults(func=cmd_demos_info)
-    p = dsub.add_parser("export", help="write demos in another format (LeRobot v3 dataset folder)")
-    p.add_argument("demos")
-    p.add_argument("--format", choices=["lerobot"], default="lerobot")
-    p.add_argument("--out", "-o", required=True, help="new folder")
-    p.add_argument("--task", help="LeRobot task text (default: the skill's name)")
-    p.set_defaults(func=cmd_demos_export)
-    p = dsub.add_parser("import", help="read a LeRobot v3 dataset folder as multiform demos (HDF5)")
-    p.add_argument("dataset", help="LeRobot dataset folder (meta/info.json, data/...)")
-    p.add_argument("--out", "-o", required=True, help="output .h5 file")
-    p.add_argument("--variables", help="names of the state vector's entries, comma-separated "
-                                       "(default: the feature's own names)")
-    p.add_argument("--commands", help="names of the action vector's entries, comma-separated")
-    p.add_argument("--state-key", default="observation.state")
-    p.add_argument("--action-key", default="action")
-    p.add_argument("--transition", default="t0", help="tag of every frame when there are no subtasks")
-    p.add_argument("--skill", help="skill name to record (default: the dataset's)")
-    p.add_argument("--env", help="env id to record (default: the dataset's)")
-    p.set_defaults(func=cmd_demos_import)
-
-
-def _add_teaching_commands(sub: argparse._SubParsersAction) -> None:
-    """Teleop and label: a person demonstrates, labels and grades."""
-    p = sub.add_parser("teleop", help="demonstrate a task yourself (keyboard or joystick), label it, save it (HDF5)",
-                       description="Drive the arm with the arrow keys or a joystick axis, mark the sub-procedure "
-                                   "you are executing with the number keys or joystick buttons (0-6: t0-t6), end "
-                                   "with Esc, then label every segment s (success) or f (failure). The "
-                                   "demonstration is written to --out, or appended with --append.")
-    p.add_argument("task", help="the task (its env must be multiform/ArmPendulum-v0: pendulum)")
-    p.add_argument("--out", "-o", required=True, help="demonstration file (.h5)")
-    p.add_argument("--append", action="store_true", help="add the demonstration to an existing file")
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--keyboard", action="store_true", help="ignore joysticks; arrow keys only")
-    g.add_argument("--joystick", action="store_true", help="require a joystick (axis 0 drives, buttons mark)")
-    p.add_argument("--time-scale", type=float, default=1.0, help="world speed; below 1 slows it down for a beginner")
-    p.add_argument("--max-duration", type=float, default=60.0, help="seconds of simulated time at most")
-    p.add_argument("--seed", type=_count(0, MAX_SEED), default=None,
-                   help="start state (default: the number of demos in the file)")
-    p.add_argument("--labeller", default="human", help="your name, stored with your labels")
-    p.set_defaults(func=cmd_teleop)
-
-    p = sub.add_parser("label", help="label segments of demos or recorded trials success/failure (s/f keys)",
-                       description="Shows each stay of the token in a judged place (a small plot of the place's "
-                                   "judged variables) and reads one key from the terminal: s success, f failure, "
-                                   "k skip, q quit. Verdicts are appended to MODEL/labels.jsonl with your name; "
-                                   "earlier labels are never lost, a later verdict supersedes for training.")
-    p.add_argument("source", help="demonstration file (.h5), trial trace (.npz), or practice folder of traces")
-    p.add_argument("--model", "-m", required=True, help="skill model directory")
-    p.add_argument("--labeller", default=None, help="your name (default: your login name)")
-    p.add_argument("--script", default=None, help="the keys to use instead of the terminal, e.g. sfsk (tests)")
-    p.add_argument("--no-show", action="store_true", help="open no plot window")
-    p.add_argument("--plots", default=None, help="save every segment's plot (PNG) in this folder")
-    p.add_argument("--place", action="append", default=None, help="only this judged place (repeatable)")
-    p.add_argument("--refit", action="store_true", help="then revise the judges of the places that got new labels")
-    p.add_argument("--seed", type=_count(0, MAX_SEED), default=0, help="random state of a newly fitted judge")
-    p.set_defaults(func=cmd_label)
-
-
-def _add_model_commands(sub: argparse._SubParsersAction) -> None:
-    """Train and practice: a skill model from demonstrations, then its practice with repair."""
-    p = sub.add_parser("train", help="fit laws, judges and regions of a skill from demonstrations")
-    p.add_argument("skill", help="skill file or bundled skill name")
-    p.add_argument("demos", help="demonstration file (.h5)")
-    p.add_argument("--out", "-o", required=True, help="model directory")
-    p.add_argument("--inverse-model", action="store_true", help="also learn the auxiliary inverse model")
-    p.add_argument("--task", default=None, help="the task (default: the one whose env recorded the demos); "
-                                                "package.module:NAME or path/to/file.py:NAME for your own")
-    p.add_argument("--seed", type=_count(0, MAX_SEED), default=0)
-    p.set_defaults(func=cmd_train)
-
-    p = sub.add_parser("practice", help="practise a trained skill; repair the net on constant failure")
-    p.add_argument("model", help="model directory")
-    p.add_argument("--task", default=None,
-                   help="the task (default: the bundled or installed one whose env the model runs); "
-                        "package.module:NAME or path/to/file.py:NAME for your own")
-    p.add_argument("--scenario", default="a_strict", help="the task's practice scenario")
-    p.add_argument("--out", help="practice folder (default MODEL/practice/SCENARIO)")
-    p.add_argument("--max-trials", type=_count(1, 100_000), default=30)
-    p.add_argument("--stop-after", type=_count(1, 100_000), default=None,
-                   help="stop after this many trials (resume later)")
-    p.add_argument("--seed", type=_count(0, MAX_SEED - 1_000_000), default=0)
-    p.add_argument("--env-module", action="append", default=[], metavar="MODULE",
-                   help="allow the model's env id to import MODULE (Gymnasium's module:Env-v0 form); a model "
-                        "directory never imports code on its own")
-    _add_view(p, "each trial (saved in the practice folder's view/)")
-    p.set_defaults(func=cmd_practice)
-
-
-def _add_run_commands(sub: argparse._SubParsersAction) -> None:
-    """Evaluate and demo: a model's evaluation, and the main job from nothing to a report."""
-    p = sub.add_parser("evaluate", help="run a trained model on the task's evaluation trials; success with its "
-                                        "95 %% interval, the pushed split, the robot's own verdict")
-    p.add_argument("model", help="model directory")
-    p.add_argument("--task", default=None,
-                   help="the task (default: the bundled or installed one whose env the model runs); "
-                        "package.module:NAME or path/to/file.py:NAME for your own")
-    p.add_argument("--trials", type=_count(1, 1_000_000), default=200)
-    p.add_argument("--seed", type=_count(0, 40_000), default=0, help="which trials (the main job's evaluation: 0)")
-    p.add_argument("--push-fraction", type=_fraction, default=0.5,
-                   help="share of the trials pushed while balancing (pendulum)")
-    p.add_argument("--version", "-v", type=_count(-1_000_000, 1_000_000), dest="version", default=None,
-                   help="net version to run (default: the latest)")
-    p.add_argument("--workers", type=_count(1, 256), default=2)
-    p.add_argument("--out", "-o", default=None,
-                   help="folder for evaluation.json: the rate, its interval, and one record per trial")
-    p.add_argument("--env-module", action="append", default=[], metavar="MODULE",
-                   help="allow the model's env id to import MODULE")
-    _add_ray(p)
-    p.set_defaults(func=cmd_evaluate)
-
-    p = sub.add_parser("demo", help="the main job: record, train, practise with repair, evaluate, report")
-    p.add_argument("task", help="a bundled task (pendulum, nunchaku), an installed one, package.module:NAME or path/to/file.py:NAME")
-    p.add_argument("--out", "-o", required=True, help="run folder")
-    p.add_argument("--demos", type=_count(1, 1000), default=None,
-                   help="demonstrations (default: the task's DEMOS: pendulum 10, nunchaku 10)")
-    p.add_argument("--eval-trials", type=_count(1, 1_000_000), default=200)
-    p.add_argument("--ablation-trials", type=_count(0, 1_000_000), default=None,
-                   help="the first evaluation trials also run by each ablation (default: 50)")
-    p.add_argument("--max-trials", type=_count(1, 100_000), default=30, help="practice trials per scenario at most")
-    p.add_argument("--workers", type=_count(1, 256), default=2)
-    p.add_argument("--seed", type=_count(0, 40_000), default=0)
-    p.add_argument("--no-video", action="store_true")
-    p.add_argument("--learn-from-practice", action=argparse.BooleanOptionalAction, default=None,
-                   help="after the repair scenarios, keep practising as evaluated and learn from it: refit the laws "
-                        "from the robot's own graded successes and the mentor's takeovers, revise the judges with "
-                        "the mentor's grades of some trials (default: the task's LEARN: on for both bundled tasks)")
-    p.add_argument("--practice-budget", type=_count(0, 100_000), default=100,
-                   help="practice trials of all scenarios together at most")
-    p.add_argument("--reference-controller", action="store_true",
-                   help="drive the arm with the env's model-based controller instead of the learned inverse model")
-    _add_view(p, "the report's picked trials (saved in RUN/view/)")
-    _add_ray(p)
-    p.set_defaults(func=cmd_demo)
-
-
-def _add_output_commands(sub: argparse._SubParsersAction) -> None:
-    """Replay and report: what a run leaves to look at."""
-    p = sub.add_parser("replay", help="replay a demonstration or a saved trial into the view (.rrd) or to an MP4",
-                       description="A demonstration (a .h5 file, --demo picks one) is replayed on its env from its "
-                                   "seed and commands and checked to reproduce the recorded states; a trial trace "
-                                   "(.npz) is shown as recorded (its scene needs --model, the model that ran it). "
-                                   "Without --video or --rrd, writes SOURCE's name with .rrd.")
-    p.add_argument("source", help="demonstration file (.h5) or trial trace (.npz)")
-    p.add_argument("--demo", type=_count(0, 1_000_000), default=0, help="which demonstration of the file (from 0)")
-    p.add_argument("--model", "-m", default=None, help="skill model directory (for a trial's scene)")
-    p.add_argument("--video", default=None, help="write an MP4 with time, place, transition and push on every frame")
-    p.add_argument("--rrd", default=None, help="write the rerun recording here")
-    p.add_argument("--fps", type=_positive, default=30.0, help="frames per second of the video and the scene")
-    _add_view(p, "the replay")
-    p.set_defaults(func=cmd_replay)
-
-    p = sub.add_parser("report", help="rebuild a run folder's report.html from its metrics.json")
-    p.add_argument("run")
-    p.add_argument("--redraw", action="store_true",
-                   help="also redraw the plots, nets and videos (reruns the two picked trials from their seeds)")
-    p.add_argument("--view", action="store_true",
-                   help="also save the picked trials as rerun recordings (RUN/view/*.rrd); implies --redraw")
-    p.set_defaults(func=cmd_report)
-
-
-def _version() -> str:
-    from . import __version__
-    return __version__
-
-
-class _Parser(argparse.ArgumentParser):
-    """argparse with a one-line error (the argument and what is wrong), exit status 2."""
-
-    def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+    """The command line, each sub-command run by this module's ``cmd_*`` function of its name."""
+    handlers = {name[4:]: fn for name, fn in globals().items() if name.startswith("cmd_")}
+    return cli_options.build_parser(handlers)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if os.getcwd() not in sys.path:     # module:NAME task specs find modules in the current folder,
+        sys.path.append(os.getcwd())    # as under `python -m multiform` (last: nothing installed is shadowed)
     try:
         code = int(args.func(args) or 0)
         sys.stdout.flush()               # a closed pipe shows here, not as a traceback at exit
         return code
+    except MissingInput as exc:
+        _print_problems(exc)
+        return EXIT_MISSING
     except InvalidInput as exc:
         _print_problems(exc)
         return EXIT_BAD_INPUT
@@ -795,7 +491,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"multiform: error: {where}{exc.strerror or exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+        return EXIT_MISSING if isinstance(exc, FileNotFoundError) else EXIT_BAD_INPUT
     except RecursionError:
         if args.debug:
             raise

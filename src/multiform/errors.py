@@ -37,3 +37,8 @@ class InvalidInput(MultiformError, ValueError):
             problems = [problems]
         self.problems: list[Problem] = list(problems)
         super().__init__("\n".join(str(p) for p in self.problems))
+
+
+class MissingInput(InvalidInput):
+    """An input file or folder that does not exist (the command line exits with its own status, 66,
+    so a script can tell "the file is missing" from "the file is wrong")."""

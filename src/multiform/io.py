@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InvalidInput
+from .errors import InvalidInput, MissingInput
 
 FORMAT_KEY = "__format__"
 
@@ -66,7 +66,7 @@ def read_json(path: str | os.PathLike, what: str = "file") -> Any:
     try:
         return json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise InvalidInput(f"{what} not found", file=str(path)) from None
+        raise MissingInput(f"{what} not found", file=str(path)) from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InvalidInput(f"not valid JSON ({exc})", file=str(path)) from None
 
@@ -115,7 +115,7 @@ def load_npz(path: str | os.PathLike, kind: str, version: int,
         with np.load(path, allow_pickle=False) as npz:
             arrays = {k: npz[k] for k in npz.files}
     except FileNotFoundError:
-        raise InvalidInput("file not found", file=str(path)) from None
+        raise MissingInput("file not found", file=str(path)) from None
     except ValueError as exc:  # includes "Object arrays cannot be loaded when allow_pickle=False"
         raise InvalidInput(f"cannot read arrays ({exc})", file=str(path)) from None
     except Exception as exc:  # zipfile.BadZipFile, OSError, EOFError on truncation

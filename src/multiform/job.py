@@ -179,7 +179,10 @@ class Job:
 
     def baselines(self, model: SkillModel, ev: Evaluator) -> list[tuple[Variant, list, tqdm]]:
         """Build the task's ablations and queue their trials (the first ``ablation_trials`` of the
-        evaluation trials) on ``ev``; collected by :meth:`evaluate`."""
+        evaluation trials) on ``ev``; collected by :meth:`evaluate`. With ``ablation_trials`` 0 there
+        are none: no ablation is reported rather than one of zero trials."""
+        if not self.cfg.ablation_trials:
+            return []
         sub = self._specs()[: self.cfg.ablation_trials]
         queued = []
         for i, variant in enumerate(self.task.ablations(model, self.out, self.cfg)):
@@ -257,9 +260,9 @@ class Job:
         ok = sum(e.outcome == "success" for e in ds)
         mentor = rate(ok, len(ds))
         self.log(f"  beside: the mentor's own rate over its {len(ds)} demonstrations {100 * mentor['rate']:.1f} % "
-                 f"(95 % CI {100 * mentor['low']:.1f}-{100 * mentor['high']:.1f} %); "
-                 + "; ".join(f"{r['name'].split(' (')[0]} {100 * r['rate']:.1f} % "
-                             f"({100 * r['low']:.1f}-{100 * r['high']:.1f} %)" for r in rows[1:]))
+                 f"(95 % CI {100 * mentor['low']:.1f}-{100 * mentor['high']:.1f} %)"
+                 + "".join(f"; {r['name'].split(' (')[0]} {100 * r['rate']:.1f} % "
+                           f"({100 * r['low']:.1f}-{100 * r['high']:.1f} %)" for r in rows[1:]))
         revisions = []
         for name, s in scenarios.items():
             for r in s["revisions"]:

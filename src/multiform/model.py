@@ -39,7 +39,7 @@ import numpy as np
 
 from .demos.dataset import read_dataset
 from .demos.episode import Episode
-from .errors import InvalidInput, Problem
+from .errors import InvalidInput, MissingInput, Problem
 from .io import read_json, write_json
 from .lock import exclusive
 from .learn.condition import load_condition
@@ -68,6 +68,8 @@ class SkillModel:
 
     def __init__(self, path: str | os.PathLike, env_modules: Sequence[str] = ()):
         self.path = Path(path)
+        if not self.path.exists():
+            raise MissingInput("no such model directory", file=str(self.path))
         if not (self.path / "skill.yaml").is_file():
             raise InvalidInput("not a skill model directory (no skill.yaml)", file=str(self.path))
         self.history = History(self.path / "skill.yaml", self.path / "skill.history.jsonl")
@@ -78,10 +80,16 @@ class SkillModel:
     @classmethod
     def create(cls, path: str | os.PathLike, skill: str | os.PathLike, demos: str | os.PathLike | None = None,
                env_id: str | None = None, env_kwargs: Mapping[str, Any] | None = None) -> SkillModel:
-        """Start a model directory from a skill file (copied) and, optionally, a demonstration file."""
+        """Start a model directory from a skill file (copied) and, optionally, a demonstration file.
+        The model runs ``env_id`` (the demonstrations' env), else the skill file's ``env:``; a skill
+        file whose ``env:`` names another env is refused rather than silently ignored."""
         path = Path(path)
         src = resolve_skill(skill)
         apn = load_skill(src)                          # validate before writing anything
+        if env_id and apn.env and env_id != apn.env:
+            raise InvalidInput(f"the skill file says env: {apn.env}, but the demonstrations were recorded on "
+                               f"{env_id}; the model runs the demonstrations' env: correct the skill file's env: "
+                               "or record on its env", file=str(src), element="env")
         path.mkdir(parents=True, exist_ok=True)
         dst = path / "skill.yaml"
         if dst.exists():

@@ -30,7 +30,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from .errors import InvalidInput
+from .errors import InvalidInput, MissingInput
 
 BUNDLED = {"pendulum": "multiform.tasks.pendulum:Pendulum", "nunchaku": "multiform.tasks.nunchaku:Nunchaku"}
 ENTRY_POINT_GROUP = "multiform.tasks"
@@ -111,12 +111,23 @@ class Task:
     spec: str = ""                              # how load_task found it (set by load_task)
 
     def physical_success(self, trace: Any) -> bool:
-        """The task done, judged on the simulated world itself (the experimenter's check)."""
+        """The task done, judged on the simulated world itself (the experimenter's check).
+
+        A trial's trace ends when the net stops: at a final place (success or failure) or at the
+        skill's ``max_duration``, not at a fixed time. Judge what happened over the whole trace
+        (e.g. "upright for 5 s at some point"), not only its last samples: a skill that gives up
+        early ends its trace early too, and its last samples may look fine."""
         raise NotImplementedError(f"task {self.TASK or type(self).__name__} has no physical_success")
 
     def make_mentor(self, **kwargs: Any) -> Any:
-        """A scripted mentor (:class:`multiform.demos.episode.Mentor`): ``reset``, ``act``, ``label``,
-        and optionally ``grade_trial`` (its verdict on each stay of a practice trial)."""
+        """A scripted mentor (:class:`multiform.demos.episode.Mentor`), made once per recording process:
+        its ``name`` (stored with its episodes and labels), ``reset(obs, rng)`` at each
+        demonstration (``rng`` seeded from the demonstration's seed; a ``reset`` that takes a
+        ``seed`` keyword is told the seed too), ``act(obs, info, t)`` -> (command, transition),
+        ``finished()``, ``label(episode)`` -> segment labels, and optionally ``outcome``
+        (``"success"``/``"failure"``), its verdict on the whole attempt. ``kwargs`` come from
+        :func:`multiform.demos.record.record_many`'s ``mentor_kwargs``. Optionally ``grade_trial``:
+        its verdict on each stay of a practice trial (:meth:`mentor_grader`)."""
         raise InvalidInput(f"task {self.TASK} has no scripted mentor; record demonstrations yourself", element="task")
 
     def demo_push(self, seed: int) -> dict[str, Any] | None:
@@ -156,7 +167,8 @@ class Task:
     def evaluation_specs(self, n: int, seed: int, push_fraction: float) -> list[TrialSpec]:
         """``n`` evaluation trials of job seed ``seed``: trial ``i`` has seed ``EVALUATION_SEEDS +
         100000 * seed + i`` and its :meth:`trial_options`; every trial whose index falls in
-        ``push_fraction`` (every second one at 0.5, counting from the first) gets :meth:`push`."""
+        ``push_fraction`` (every ``round(1 / push_fraction)``-th, from the first) gets :meth:`push`; never a
+        demonstration's seed (``100000 * seed + i``)."""
         every = 0 if push_fraction <= 0 else max(1, int(round(1.0 / push_fraction)))
         out = []
         for i in range(n):
@@ -271,7 +283,7 @@ def _import_module(name: str, spec: str) -> ModuleType:
 def _import_file(path: str, spec: str) -> ModuleType:
     file = Path(path).resolve()
     if not file.is_file():
-        raise InvalidInput("no such file", file=path, element=spec)
+        raise MissingInput("no such file", file=path, element=spec)
     key = "multiform_task_" + "".join(c if c.isalnum() else "_" for c in str(file))
     if key in sys.modules:
         return sys.modules[key]

@@ -48,8 +48,14 @@ def test_round_trip(demo_file):
 def test_robomimic_layout(demo_file):
     path, eps = demo_file
     with h5py.File(path) as f:
-        assert f["data"].attrs["format_version"] == 2
-        assert json.loads(f["data"].attrs["env_args"])["type"] == 2       # robomimic's EnvType.GYM_TYPE
+        assert f["data"].attrs["format_version"] == 3
+        env_args = json.loads(f["data"].attrs["env_args"])
+        assert env_args["type"] == 2       # robomimic's EnvType.GYM_TYPE
+        # the actions are what the env in env_args takes: normalised by the env's own limit, 1.5 m/s
+        assert env_args["env_kwargs"] == {"action_mode": "ee", "normalize_actions": True}
+        assert list(f["data"].attrs["action_low"]) == [-1.5] and list(f["data"].attrs["action_high"]) == [1.5]
+        np.testing.assert_array_equal(f["data/demo_0/actions"][()], np.clip(2 * (eps[0].actions + 1.5) / 3 - 1, -1, 1))
+        np.testing.assert_array_equal(f["data/demo_0/commands"][()], eps[0].actions)
         assert f["data/demo_0"].attrs["num_samples"] == 300
         assert f["data/demo_0/obs/theta"].shape == (300, 1)
         assert f["data/demo_0/obs/theta"].compression == "gzip"
@@ -64,6 +70,8 @@ def test_robomimic_layout(demo_file):
         assert f["data/demo_0/transition"].dtype == np.uint8 and names == ["t0", "t1"]
         assert [x.decode() for x in f["mask/success"][()]] == ["demo_0", "demo_2"]
         assert [x.decode() for x in f["mask/failure"][()]] == ["demo_1"]
+        assert [x.decode() for x in f["mask/train"][()]] == ["demo_0", "demo_1", "demo_2"]   # int(0.3) valid
+        assert len(f["mask/valid"][()]) == 0
 
 
 def test_truncated_file_refused_and_untouched(demo_file):
@@ -153,8 +161,36 @@ def test_version_1_files_still_read(tmp_path):
         assert list(a.transitions) == list(b.transitions) and a.labels == b.labels
 
 
+def _as_version_2(path):
+    """Rewrite a file of an env without normalize_actions as format 2 wrote it: the actions divided
+    by a power of two per command (``action_scale``)."""
+    with h5py.File(path, "r+") as f:
+        d = f["data"]
+        assert "action_high" not in d.attrs
+        peak = max(np.abs(d[k]["actions"][()]).max() for k in d if k.startswith("demo_"))
+        scale = 2.0 ** np.ceil(np.log2(peak))
+        d.attrs["format_version"] = 2
+        d.attrs["action_scale"] = [scale]
+        for k in [k for k in d if k.startswith("demo_")]:
+            a = d[k]["actions"][()] / scale
+            del d[k]["actions"]
+            d[k].create_dataset("actions", data=a)
+    return path
+
+
+def test_version_2_files_still_load_with_their_commands_exact(tmp_path):
+    eps = [_episode(0), _episode(1, outcome="failure")]
+    for ep in eps:
+        ep.actions = ep.actions * 3.7
+    path = _as_version_2(write_dataset(tmp_path / "v2.h5", eps, "pendulum", "x", {"action_mode": "ee"}))
+    ds = read_dataset(path)
+    assert ds.meta["format_version"] == 2 and ds.env_kwargs == {"action_mode": "ee"}
+    for a, b in zip(eps, ds.episodes, strict=True):
+        assert np.array_equal(a.actions, b.actions)
+
+
 def test_compact_storage_is_exact_and_small(tmp_path):
-    """Commands of any size come back bit for bit (the scale is a power of two); identical
+    """Commands of an env without normalize_actions are stored as they are, bit for bit; identical
     observation columns are stored once; the tags cost a byte a sample."""
     rng = np.random.default_rng(3)
     ep = _episode(0, n=4000)
@@ -164,8 +200,8 @@ def test_compact_storage_is_exact_and_small(tmp_path):
     back = read_dataset(path).episodes[0]
     assert np.array_equal(back.actions, ep.actions) and np.array_equal(back.obs, ep.obs.astype(np.float32))
     with h5py.File(path) as f:
-        scale, peak = f["data"].attrs["action_scale"][0], np.abs(ep.actions).max()
-        assert np.log2(scale) % 1 == 0 and peak <= scale < 2 * peak
+        assert "action_high" not in f["data"].attrs and "commands" not in f["data/demo_0"]
+        assert np.array_equal(f["data/demo_0/actions"][()], ep.actions)
         assert f["data/demo_0/obs/x"].id == f["data/demo_0/obs/xdot"].id          # one dataset, two names
         assert f["data/demo_0/transition"].id.get_storage_size() < 4000
 
@@ -175,8 +211,8 @@ def test_compact_storage_is_exact_and_small(tmp_path):
     (lambda f: f["data"].attrs.__setitem__("transition_names", '["t0"]'), "code 1 has no name"),
     (lambda f: f["data"].attrs.__delitem__("transition_names"), "missing attribute 'transition_names'"),
 ])
-def test_bad_version_2_tables_refused(demo_file, mutate, fragment):
-    path, _ = demo_file
+def test_bad_version_2_tables_refused(tmp_path, mutate, fragment):
+    path = _as_version_2(write_dataset(tmp_path / "v2.h5", [_episode(0), _episode(1)], "pendulum", "x"))
     with h5py.File(path, "r+") as f:
         mutate(f)
     with pytest.raises(InvalidInput, match=fragment):
@@ -194,3 +230,17 @@ def test_float64_observations_on_request_half_as_compact(tmp_path):
     assert small.stat().st_size < 0.65 * exact.stat().st_size         # the commands stay float64
     with pytest.raises(InvalidInput, match="obs_dtype must be float64 or float32"):
         write_dataset(tmp_path / "e.h5", [ep], "pendulum", "x", obs_dtype="float16")
+
+
+@pytest.mark.parametrize("mutate, fragment", [
+    (lambda f: f["data"].attrs.__setitem__("action_high", [-1.5]), "action_low/action_high must be 1 finite limits"),
+    (lambda f: f["data"].attrs.__delitem__("action_low"), "missing attribute 'action_low'"),
+    (lambda f: f["data/demo_1"].__delitem__("commands"), "data/demo_1/commands: missing dataset"),
+    (lambda f: f["data/demo_0/commands"].__setitem__((5, 0), np.nan), "data/demo_0/commands: must hold finite"),
+])
+def test_bad_version_3_tables_refused(demo_file, mutate, fragment):
+    path, _ = demo_file
+    with h5py.File(path, "r+") as f:
+        mutate(f)
+    with pytest.raises(InvalidInput, match=fragment):
+        read_dataset(path)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import multiform.envs  # noqa: F401  (registers the envs)
-from multiform.cli import main
+from multiform.cli import EXIT_MISSING, main
 from multiform.demos.dataset import write_dataset
 from multiform.demos.labelling import read_sources, segments_to_label
 from multiform.demos.record import record_many
@@ -200,7 +200,7 @@ def test_bad_input_is_refused_and_nothing_changes(work, case, capsys):
     before = snapshot(model)
     argv = ["label", args["source"], "--model", args["model"], "--script", args["script"], "--no-show",
             "--refit", "--plots", str(work / "plots"), *args["extra"]]
-    assert main(argv) == 2
+    assert main(argv) == (EXIT_MISSING if case == "missing_file" else 2)
     err = capsys.readouterr().err
     assert named in err, err
     assert snapshot(model) == before

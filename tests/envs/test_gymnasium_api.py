@@ -134,3 +134,71 @@ def test_normalised_actions_are_the_same_physics(env_id, kwargs):
         a = plain.step(lo + (u + 1) / 2 * (hi - lo))[0]
         b = norm.step(u)[0]
     np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)
+
+
+def test_gymnasium_makes_the_envs_in_a_fresh_interpreter_without_importing_multiform():
+    """Gymnasium 1.x loads no plugins: the id names the module that registers it; and
+    `import multiform` alone registers nothing and imports neither Gymnasium nor MuJoCo."""
+    code = textwrap.dedent("""
+        import sys, gymnasium
+        env = gymnasium.make("multiform.envs:multiform/ArmPendulum-v0")
+        obs, _ = env.reset(seed=0)
+        print(obs.shape[0], env.unwrapped.dt, "multiform/Nunchaku-v0" in gymnasium.registry)
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["28", "0.001", "True"]
+    code = ("import sys, multiform; print(sorted(m for m in ('gymnasium', 'mujoco', 'multiform.envs') "
+            "if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_frame_skip_holds_the_action_over_that_many_physics_steps(env_id):
+    fine = gym.make(env_id, disable_env_checker=True)
+    coarse = gym.make(env_id, disable_env_checker=True, frame_skip=20)
+    assert coarse.unwrapped.dt == pytest.approx(0.02) and coarse.metadata["render_fps"] == 50
+    assert fine.metadata["render_fps"] == 1000
+    fine.reset(seed=3)
+    coarse.reset(seed=3)
+    action = 0.3 * coarse.action_space.high
+    total = 0.0
+    for _ in range(3):
+        for _ in range(20):
+            obs_fine, r, *_ = fine.step(action)
+            total += r
+        obs_coarse, r_coarse, *_ = coarse.step(action)
+        assert np.array_equal(obs_fine, obs_coarse)
+    with pytest.raises(ValueError, match="frame_skip"):
+        gym.make(env_id, frame_skip=0)
+
+
+@pytest.mark.slow
+def test_record_video_of_a_full_pendulum_episode_stays_under_500_mb(tmp_path):
+    """60 s of the arm (the registered time limit) recorded by Gymnasium's RecordVideo at 25 frames
+    per second (frame_skip 40, 320x240): the memory the recording takes (the process's peak, video
+    written, above what it held before the episode: the interpreter, MuJoCo and its GL context,
+    about 300 MB) stays under 500 MB; at 1 kHz it would be about 14 GB."""
+    code = textwrap.dedent(f"""
+        import resource, gymnasium, numpy as np
+        from gymnasium.wrappers import RecordVideo
+        env = gymnasium.make("multiform.envs:multiform/ArmPendulum-v0", render_mode="rgb_array", frame_skip=40,
+                             width=320, height=240, shadows=False, max_episode_steps=1500)
+        env = RecordVideo(env, {str(tmp_path)!r}, episode_trigger=lambda e: True)
+        env.reset(seed=0)
+        before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024
+        steps, done = 0, False
+        while not done:
+            _, _, term, trunc, _ = env.step(np.zeros(1))
+            steps, done = steps + 1, term or trunc
+        env.close()
+        print(steps, env.unwrapped.data.time, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024 - before)
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=900)
+    assert out.returncode == 0, out.stderr[-3000:]
+    steps, sim_time, peak_mb = out.stdout.split()[-3:]
+    assert int(steps) == 1500 and float(sim_time) == pytest.approx(60.0)
+    assert int(peak_mb) < 500, peak_mb
+    videos = list(tmp_path.glob("*.mp4"))
+    assert len(videos) == 1 and videos[0].stat().st_size > 10_000

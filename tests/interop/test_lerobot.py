@@ -170,33 +170,87 @@ def test_bad_lerobot_input_is_named(tmp_path):
         read_lerobot(tmp_path)
 
 
-@pytest.mark.lerobot
-def test_lerobots_own_dataset_class_loads_the_export_and_its_frames_equal_the_source(demos, tmp_path):
+def _downsampled(ep, step):
+    """What a frame of an export at 1/step of the control rate holds: the state, subtask and
+    segment label at its first tick, the mean command over its ticks."""
+    starts = np.arange(0, ep.num_samples, step)
+    ends = np.append(starts[1:], ep.num_samples)
+    return (ep.obs[starts], np.stack([ep.actions[s:t].mean(axis=0) for s, t in zip(starts, ends)]),
+            [ep.transitions[s] for s in starts])
+
+
+def test_every_feature_has_statistics_per_episode_and_over_the_dataset(demos, tmp_path):
+    out = tmp_path / "lerobot"
+    assert main(["demos", "export", str(demos), "--out", str(out)]) == 0
+    info = json.loads((out / "meta/info.json").read_text())
+    stats = json.loads((out / "meta/stats.json").read_text())
+    episodes = pd.read_parquet(out / "meta/episodes/chunk-000/file-000.parquet")
+    src = read_dataset(demos)
+    names = ("min", "max", "mean", "std", "count", "q01", "q10", "q50", "q90", "q99")
+    for key, ft in info["features"].items():
+        assert set(stats[key]) == set(names), key
+        for name in names:
+            assert f"stats/{key}/{name}" in episodes.columns, (key, name)
+        assert len(stats[key]["mean"]) == ft["shape"][0]
+    for e, ep in enumerate(src.episodes):
+        row = episodes[episodes["episode_index"] == e].iloc[0]
+        assert list(row["stats/observation.state/max"]) == list(ep.obs.max(axis=0))
+        assert list(row["stats/action/min"]) == list(ep.actions.min(axis=0))
+        assert list(row["stats/timestamp/max"]) == [float(np.float32((ep.num_samples - 1) * ep.dt))]
+        assert list(row["stats/next.done/count"]) == [ep.num_samples]
+    assert stats["index"]["max"] == [sum(ep.num_samples for ep in src) - 1]
+    assert stats["observation.state"]["count"] == [sum(ep.num_samples for ep in src)]
+
+
+def test_an_export_at_50_fps_holds_the_state_at_each_frame_and_the_mean_command_over_it(demos, tmp_path, capsys):
+    out = tmp_path / "lerobot50"
+    assert main(["demos", "export", str(demos), "--out", str(out), "--fps", "50"]) == 0
+    assert "at 50 fps" in capsys.readouterr().out
+    info = json.loads((out / "meta/info.json").read_text())
+    assert info["fps"] == 50
+    back, _ = read_lerobot(out)
+    for ep, got in zip(read_dataset(demos).episodes, back, strict=True):
+        obs, act, tags = _downsampled(ep, 20)
+        assert np.array_equal(got.obs, obs) and np.allclose(got.actions, act, rtol=1e-12, atol=1e-15)
+        assert list(got.transitions) == tags and got.dt == 0.02 and got.outcome == ep.outcome
+        assert [(lab.start, lab.transition) for lab in got.labels] == [(lab.start // 20, lab.transition)
+                                                                        for lab in ep.labels]
+    for bad in ("30", "0.5", "2000"):
+        assert main(["demos", "export", str(demos), "--out", str(tmp_path / f"x{bad}"), "--fps", bad]) == 2
+    assert "must be a whole number that divides the control rate 1000 Hz" in capsys.readouterr().err
+
+
+@pytest.mark.interop
+def test_lerobots_own_dataset_class_loads_a_50_fps_export_with_its_statistics(demos, tmp_path):
     """LeRobot pins torch and rerun releases of its own, so it lives in a separate environment
-    (`make test-lerobot` builds it and names its Python in MULTIFORM_LEROBOT_PYTHON)."""
+    (`make test-interop` builds it and names its Python in MULTIFORM_INTEROP_PYTHON)."""
     import os
     import subprocess
     import sys
-    python = os.environ.get("MULTIFORM_LEROBOT_PYTHON")
+    python = os.environ.get("MULTIFORM_INTEROP_PYTHON")
     if not python:
-        pytest.skip("LeRobot's environment is not set up (make test-lerobot)")
+        pytest.skip("the interop environment is not set up (make test-interop)")
     out = tmp_path / "lerobot"
-    assert main(["demos", "export", str(demos), "--out", str(out)]) == 0
+    assert main(["demos", "export", str(demos), "--out", str(out), "--fps", "50"]) == 0
     script = Path(__file__).with_name("lerobot_frames.py")
     subprocess.run([python, str(script), str(out), str(tmp_path / "frames.npz")], check=True, timeout=900,
                    env={**os.environ, "HF_HUB_OFFLINE": "1", "PYTHONPATH": ""}, stdout=sys.stderr)
     got = np.load(tmp_path / "frames.npz", allow_pickle=False)
     src = read_dataset(demos)
-    assert int(got["num_episodes"]) == len(src)
+    info = json.loads((out / "meta/info.json").read_text())
+    assert int(got["num_episodes"]) == len(src) and int(got["fps"]) == 50
+    assert set(got["stats_keys"]) == set(info["features"])              # every feature has its statistics
     at = 0
     for e, ep in enumerate(src.episodes):
-        n = ep.num_samples
+        obs, act, tags = _downsampled(ep, 20)
+        n = len(obs)
         sl = slice(at, at + n)
         assert set(got["episode_index"][sl]) == {e} and np.array_equal(got["frame_index"][sl], np.arange(n))
         # LeRobot hands frames out as float32 tensors: equal to the source rounded to float32
-        assert np.array_equal(got["observation_state"][sl], ep.obs.astype(np.float32))
-        assert np.array_equal(got["action"][sl].reshape(n, -1), ep.actions.astype(np.float32))
-        assert list(got["subtask"][sl]) == list(ep.transitions)
+        assert np.array_equal(got["observation_state"][sl], obs.astype(np.float32))
+        assert np.allclose(got["action"][sl].reshape(n, -1), act.astype(np.float32), rtol=1e-6, atol=1e-7)
+        assert np.allclose(got["timestamp"][sl].reshape(n), np.arange(n) / 50, atol=1e-6)
+        assert list(got["subtask"][sl]) == tags
         assert bool(got["next_success"][sl][-1]) == (ep.outcome == "success") and not got["next_success"][sl][:-1].any()
         at += n
     assert at == len(got["frame_index"])

@@ -31,13 +31,13 @@ def test_draw_and_diff_and_export(tmp_path, capsys):
     hist = History(skill)
     apn, rev = add_transition(hist.latest(), "t7", {"in": ["P2"], "out": ["P1"], "law": "swing_up"}, "push")
     hist.record(rev)
-    assert main(["draw", str(skill), "-v", "1", "-o", str(tmp_path / "v1.svg")]) == 0
+    assert main(["draw", str(skill), "--net-version", "1", "-o", str(tmp_path / "v1.svg")]) == 0
     svg = (tmp_path / "v1.svg").read_text()
     assert "<svg" in svg and "t7" in svg and "#d95f02" in svg      # the change in its own colour
     assert main(["net", "diff", str(skill), "0", "1"]) == 0
     out = capsys.readouterr().out
     assert "t7" in out and "1 change(s)" in out
-    assert main(["net", "export", str(skill), "-v", "1", "-o", str(tmp_path / "n.pnml")]) == 0
+    assert main(["net", "export", str(skill), "--net-version", "1", "-o", str(tmp_path / "n.pnml")]) == 0
     assert main(["net", "import", str(tmp_path / "n.pnml"), "-o", str(tmp_path / "back.yaml")]) == 0
     assert "t7" in (tmp_path / "back.yaml").read_text()
     assert main(["net", "history", str(skill)]) == 0
@@ -73,7 +73,7 @@ def test_export_and_draw_use_the_latest_version_and_say_so(tmp_path, capsys):
     captured = capsys.readouterr()
     assert "version 1, the latest of the history" in captured.err and "(version 1)" in captured.out
     assert "t7" in read_pnml(tmp_path / "latest.pnml").transition_ids
-    assert main(["net", "export", str(model), "-v", "0", "-o", str(tmp_path / "v0.pnml")]) == 0
+    assert main(["net", "export", str(model), "--net-version", "0", "-o", str(tmp_path / "v0.pnml")]) == 0
     assert "t7" not in read_pnml(tmp_path / "v0.pnml").transition_ids
     assert "latest" not in capsys.readouterr().err
     assert main(["draw", str(model / "skill.yaml"), "-o", str(tmp_path / "latest.svg")]) == 0

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from multiform.report.video import draw_lines, frame_labels, overlay_frames
+from multiform.report.video import draw_lines, frame_labels, overlay_frames, write_mp4
 
 from .test_plots import trace_with
 
@@ -30,3 +31,15 @@ def test_drawing_leaves_the_rest_of_the_frame_alone():
     frame = np.full((100, 200, 3), 77, np.uint8)
     out = draw_lines(frame, ["t = 1.00 s"])
     assert np.array_equal(out[60:, :], frame[60:, :]) and np.array_equal(frame, np.full_like(frame, 77))
+
+
+def test_videos_use_the_ffmpeg_program_and_say_so_when_it_is_missing(tmp_path, monkeypatch):
+    from multiform.report.video import read_mp4
+    frames = [np.full((48, 64, 3), 40 * k, dtype=np.uint8) for k in range(6)]
+    path = write_mp4(frames, tmp_path / "a.mp4", fps=10)
+    back = read_mp4(path)
+    assert back.shape == (6, 48, 64, 3) and np.abs(back.astype(int) - np.stack(frames)).max() <= 8
+    monkeypatch.setenv("MULTIFORM_FFMPEG", str(tmp_path / "no-ffmpeg"))
+    with pytest.raises(RuntimeError, match="install the ffmpeg program"):
+        write_mp4(frames, tmp_path / "b.mp4")
+    assert not (tmp_path / "b.mp4").exists()

@@ -3,7 +3,6 @@ rerun recording and an MP4 whose frames carry the overlay."""
 
 from __future__ import annotations
 
-import imageio
 import numpy as np
 import pytest
 
@@ -13,6 +12,7 @@ from multiform.cli import main  # noqa: E402
 from multiform.demos.dataset import read_dataset, write_dataset  # noqa: E402
 from multiform.demos.pendulum_mentor import PendulumMentor  # noqa: E402
 from multiform.demos.record import PushDuring, record_episode  # noqa: E402
+from multiform.report.video import read_mp4  # noqa: E402
 from multiform.envs.arm_pendulum import ArmPendulumEnv  # noqa: E402
 from multiform.view.replay import labels, replay_demo  # noqa: E402
 from multiform.view.stream import read_recording  # noqa: E402
@@ -48,9 +48,7 @@ def test_replay_reproduces_the_demo_into_the_view_and_a_video_with_overlays(demo
 
     r = replay_demo(demos, 0, every=100)
     try:
-        reader = imageio.get_reader(str(mp4))
-        frames = [f for f in reader]
-        reader.close()
+        frames = read_mp4(mp4)
         assert len(frames) == len(r.qpos)
         push_frame = next(i for i in range(len(r.qpos)) if "PUSH" in labels(r, i))
         quiet = 0

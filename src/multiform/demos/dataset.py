@@ -1,28 +1,40 @@
 """The demonstration dataset: HDF5 through h5py in robomimic's layout, written atomically.
 
-Layout (format version 2; robomimic's ``SequenceDataset`` and ``get_dataset_info.py`` read it)::
+Layout (format version 3; robomimic's ``SequenceDataset`` and ``get_dataset_info.py`` read it)::
 
     /data                      attrs: format_version, skill, env_args (JSON: env_name, type, env_kwargs),
                                       observation_names (JSON), command_names (JSON), dt, total,
-                                      action_scale (n_cmd,), transition_names (JSON: the tag codes' names)
+                                      transition_names (JSON: the tag codes' names),
+                                      action_low, action_high (n_cmd,) when the actions are normalised
     /data/demo_0               attrs: num_samples, seed, reset_options (JSON), outcome, mentor
-        obs/<name>             (T, 1) float32 (or float64 if so written), one dataset per observation entry (identical
-                               entries are one dataset under two names)
+        obs/<name>             (T, 1) float32 (float64 if so written), one dataset per observation entry
+                               (identical entries are one dataset under two names)
         next_obs/<name>        (T, 1) the observation after each sample (the last one repeated): a
                                virtual dataset over obs/<name>, so it takes no space
-        actions                (T, n_cmd) float64, the mentor's end-effector command divided by
-                               action_scale (a power of two per command: in [-1, 1], exactly undone)
+        actions                (T, n_cmd) float64: what the env that env_args describes takes
+        commands               (T, n_cmd) float64, with action_low/high only: the mentor's commands in
+                               the env's own units, exactly (actions = clip(2 (commands - action_low) /
+                               (action_high - action_low) - 1, -1, 1))
         rewards                (T,) float64, 1 on the last sample of a successful demo, else 0
         dones                  (T,) uint8, 1 on the last sample
         transition             (T,) uint8/uint16 codes into transition_names: the transition the
                                mentor was executing
         labels                 (k,) compound: start, end, transition, success, labeller
-    /mask/success, /mask/failure   demo names (bytes), robomimic's filter keys
+    /mask/success, /mask/failure   demo names (bytes), by the demo's outcome
+    /mask/train, /mask/valid       a seeded split (10 % valid, as robomimic's split_train_val.py)
 
-Every sample array is chunked and compressed (gzip with byte shuffle), so any HDF5 tool reads it.
+Actions mean what they say, as robomimic's datasets do: in [-1, 1], for an env that takes them.
+When the env (registered with Gymnasium where the file is written) offers ``normalize_actions``, as
+the bundled ones do, ``env_args.env_kwargs`` has ``normalize_actions: true``, which maps [-1, 1]
+linearly onto the env's own action limits (``action_low``..``action_high``, e.g. ±1.5 m/s), and ``commands`` keeps
+the exact commands that multiform trains on. Otherwise ``actions`` are the env's raw commands and
+``env_args`` the env as recorded. :attr:`Dataset.env_kwargs` is always the env that takes the
+commands (without ``normalize_actions``).
+
 ``env_args.type`` is 2, robomimic's ``EnvType.GYM_TYPE``: the env is a Gymnasium env made by
 ``gymnasium.make(env_name, **env_kwargs)``. There are no simulator ``states``: a demo is replayed
-from its seed and reset options. Version 1 files (uncompressed, tags as strings) are still read.
+from its seed and reset options. Version 2 files (actions divided by a power of two,
+``action_scale``) and version 1 files (uncompressed, tags as strings) are still read.
 
 Reading validates the version, every demo's fields, their shapes, dtypes and finite values, and
 names the demo and field at fault.
@@ -39,12 +51,13 @@ from typing import Any
 import h5py
 import numpy as np
 
-from ..errors import InvalidInput, Problem
+from ..errors import InvalidInput, MissingInput, Problem
 from ..io import atomic_path, json_default
 from .episode import Episode, SegmentLabel
 
-FORMAT_VERSION = 2
-READABLE_VERSIONS = (1, 2)
+FORMAT_VERSION = 3
+READABLE_VERSIONS = (1, 2, 3)
+VALID_FRACTION = 0.1             # robomimic's split_train_val.py default
 ENV_TYPE_GYM = 2                 # robomimic's EnvType.GYM_TYPE
 COMPRESSION = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
 CHUNK = 16384                    # samples per chunk
@@ -54,13 +67,14 @@ LABEL_DTYPE = np.dtype([("start", "<i8"), ("end", "<i8"), ("transition", "S64"),
 
 def write_dataset(path: str | os.PathLike, episodes: Sequence[Episode], skill: str, env_name: str,
                   env_kwargs: dict[str, Any] | None = None, mentor: str = "",
-                  obs_dtype: str = "float32") -> Path:
+                  obs_dtype: str = "float32", split_seed: int = 0) -> Path:
     """Write ``episodes`` to ``path`` (temporary file + rename: readers never see half a file).
 
     Observations are stored as float32 by default, as robomimic's and LeRobot's low-dimensional
     observations are (rounding error at most 6e-8 of the value, far below what the laws can resolve;
     the file is about half the size: float64 physics data barely compresses); ``obs_dtype="float64"``
-    keeps them exact. Commands are always exact."""
+    keeps them exact. Commands are always exact. ``split_seed`` draws the ``mask/train`` /
+    ``mask/valid`` split. The actions are normalised when the env offers it (module docstring)."""
     if obs_dtype not in ("float64", "float32"):
         raise InvalidInput(f"obs_dtype must be float64 or float32, got {obs_dtype!r}", file=str(path))
     if not episodes:
@@ -73,7 +87,9 @@ def write_dataset(path: str | os.PathLike, episodes: Sequence[Episode], skill: s
     tag_names = sorted({str(t) for ep in episodes for t in np.unique(ep.transitions)})
     code = {t: k for k, t in enumerate(tag_names)}
     code_dtype = np.uint8 if len(tag_names) <= 256 else np.uint16
-    scale = action_scale(np.concatenate([np.asarray(ep.actions, dtype=np.float64) for ep in episodes]))
+    env_kwargs = dict(env_kwargs or {})
+    unit = env_action_limits(env_name, env_kwargs, len(first.command_names))
+    file_env_kwargs = {**env_kwargs, "normalize_actions": True} if unit is not None else env_kwargs
     path = Path(path)
     with atomic_path(path, suffix=".h5") as tmp:
         with h5py.File(tmp, "w") as f:
@@ -81,35 +97,78 @@ def write_dataset(path: str | os.PathLike, episodes: Sequence[Episode], skill: s
             data.attrs["format_version"] = FORMAT_VERSION
             data.attrs["skill"] = skill
             data.attrs["env_args"] = json.dumps({"env_name": env_name, "type": ENV_TYPE_GYM,
-                                                 "env_kwargs": env_kwargs or {}})
+                                                 "env_kwargs": file_env_kwargs})
             data.attrs["observation_names"] = json.dumps(list(first.observation_names))
             data.attrs["command_names"] = json.dumps(list(first.command_names))
             data.attrs["dt"] = float(first.dt)
             data.attrs["total"] = int(sum(ep.num_samples for ep in episodes))
-            data.attrs["action_scale"] = scale
+            if unit is not None:
+                data.attrs["action_low"], data.attrs["action_high"] = unit
             data.attrs["transition_names"] = json.dumps(tag_names)
             names = {"success": [], "failure": []}
             for i, ep in enumerate(episodes):
-                _write_demo(data.create_group(f"demo_{i}"), ep, scale, code, code_dtype, np.dtype(obs_dtype), mentor)
+                _write_demo(data.create_group(f"demo_{i}"), ep, unit, code, code_dtype, np.dtype(obs_dtype), mentor)
                 names["success" if ep.outcome == "success" else "failure"].append(f"demo_{i}")
+            names.update(train_valid_split([f"demo_{i}" for i in range(len(episodes))], split_seed))
             mask = f.create_group("mask")
             for key, vals in names.items():
                 mask.create_dataset(key, data=np.asarray(vals, dtype="S32"))
     return path
 
 
-def action_scale(actions: np.ndarray) -> np.ndarray:
-    """Per command, the smallest power of two at least its largest magnitude (1 for all zeros):
-    dividing by it puts the commands in [-1, 1] as robomimic expects, and is exactly undone."""
-    peak = np.max(np.abs(actions), axis=0) if len(actions) else np.zeros(actions.shape[1:])
-    exp = np.ceil(np.log2(np.where(peak > 0, peak, 1.0)))
-    return np.ldexp(1.0, exp.astype(int))
+def train_valid_split(demos: Sequence[str], seed: int = 0,
+                      valid_fraction: float = VALID_FRACTION) -> dict[str, list[str]]:
+    """robomimic's ``mask/train`` and ``mask/valid`` filter keys, as its ``split_train_val.py``
+    makes them (``int(valid_fraction * n)`` demos valid, the rest train, over the names in sorted
+    order), with the shuffle drawn from ``seed`` so that the same demos give the same split."""
+    names = sorted(demos)
+    n_valid = int(valid_fraction * len(names))
+    valid = set(np.random.default_rng(seed).permutation(len(names))[:n_valid].tolist())
+    return {"train": [d for i, d in enumerate(names) if i not in valid],
+            "valid": [d for i, d in enumerate(names) if i in valid]}
 
 
-def _write_demo(g: h5py.Group, ep: Episode, scale: np.ndarray, code: dict[str, int], code_dtype: type,
+def env_action_limits(env_name: str, env_kwargs: dict[str, Any], n_cmd: int
+                      ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The env's own action limits (``action_space.low``, ``.high``) when the env, as registered
+    with Gymnasium here, takes ``normalize_actions`` (mapping [-1, 1] linearly onto them) and
+    ``env_kwargs`` do not set it already; None otherwise (the actions are then stored as the env's
+    raw commands)."""
+    import inspect
+
+    import gymnasium
+    if env_name.startswith("multiform/"):
+        import multiform.envs  # noqa: F401  (registers the bundled envs, so the file does not depend on it)
+    if not env_name or "normalize_actions" in env_kwargs or env_name not in gymnasium.registry:
+        return None
+    try:
+        env = gymnasium.make(env_name, disable_env_checker=True, **env_kwargs)
+    except Exception:            # an env that cannot be made here: the file stores raw commands
+        return None
+    try:
+        base = env.unwrapped
+        if "normalize_actions" not in inspect.signature(type(base).__init__).parameters:
+            return None
+        low = np.asarray(getattr(base.action_space, "low", np.nan), dtype=np.float64).reshape(-1)
+        high = np.asarray(getattr(base.action_space, "high", np.nan), dtype=np.float64).reshape(-1)
+    finally:
+        env.close()
+    if high.shape != (n_cmd,) or low.shape != (n_cmd,) or not np.all(np.isfinite(high - low)) or np.any(high <= low):
+        return None
+    return low, high
+
+
+def normalised(commands: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """Commands mapped linearly from ``[low, high]`` onto [-1, 1] (clipped), as ``normalize_actions``
+    maps them back."""
+    return np.clip(2.0 * (commands - low) / (high - low) - 1.0, -1.0, 1.0)
+
+
+def _write_demo(g: h5py.Group, ep: Episode, unit: tuple[np.ndarray, np.ndarray] | None, code: dict[str, int],
+                code_dtype: type,
                 obs_dtype: np.dtype, mentor: str) -> None:
-    """One episode's group: its attributes, observations, scaled actions, robomimic's rewards and
-    dones, transition codes and labels."""
+    """One episode's group: its attributes, observations, actions (and exact commands when the
+    actions are normalised), robomimic's rewards and dones, transition codes and labels."""
     n = ep.num_samples
     g.attrs["num_samples"] = n
     g.attrs["seed"] = int(ep.seed)
@@ -117,7 +176,12 @@ def _write_demo(g: h5py.Group, ep: Episode, scale: np.ndarray, code: dict[str, i
     g.attrs["outcome"] = ep.outcome
     g.attrs["mentor"] = mentor
     _write_obs(g, ep, obs_dtype)
-    _array(g, "actions", np.asarray(ep.actions, dtype=np.float64) / scale)
+    commands = np.asarray(ep.actions, dtype=np.float64)
+    if unit is None:
+        _array(g, "actions", commands)
+    else:
+        _array(g, "actions", normalised(commands, *unit))
+        _array(g, "commands", commands)
     rewards = np.zeros(n, dtype=np.float64)
     dones = np.zeros(n, dtype=np.uint8)
     if n:
@@ -172,7 +236,11 @@ def labels_array(labels: Iterable[SegmentLabel]) -> np.ndarray:
 
 
 class Dataset:
-    """A validated demonstration file, read fully into :class:`Episode` objects."""
+    """A validated demonstration file, read fully into :class:`Episode` objects (``episodes``; their
+    ``actions`` are the commands in the env's own units), with the file's attributes in ``meta``
+    (``env_args`` as stored, ``observation_names``, ``command_names``, ``dt``, ``format_version``,
+    ``obs_dtype``, ``action_limits``). ``skill``, ``env_name`` and ``env_kwargs`` name what recorded
+    it; iterating gives the episodes."""
 
     def __init__(self, path: str | os.PathLike):
         self.path = Path(path)
@@ -188,7 +256,12 @@ class Dataset:
 
     @property
     def env_kwargs(self) -> dict[str, Any]:
-        return dict(self.meta["env_args"].get("env_kwargs", {}))
+        """``gymnasium.make`` arguments of the env that takes the episodes' commands (the file's
+        ``env_args`` without the ``normalize_actions`` its actions were written for)."""
+        kwargs = dict(self.meta["env_args"].get("env_kwargs", {}))
+        if self.meta.get("action_limits") is not None:
+            kwargs.pop("normalize_actions", None)
+        return kwargs
 
     def __len__(self) -> int:
         return len(self.episodes)
@@ -221,7 +294,7 @@ class Dataset:
 def _read(path: Path) -> tuple[list[Episode], dict[str, Any]]:
     file = str(path)
     if not path.exists():
-        raise InvalidInput("file not found", file=file)
+        raise MissingInput("file not found", file=file)
     try:
         f = h5py.File(path, "r")
     except OSError as exc:
@@ -252,15 +325,19 @@ def _read(path: Path) -> tuple[list[Episode], dict[str, Any]]:
         if not np.isfinite(dt) or dt <= 0:
             raise InvalidInput(f"dt must be a positive number, got {dt}", file=file, element="data")
         meta.update(observation_names=obs_names, command_names=cmd_names, dt=dt, format_version=version)
-        scale, tag_names = np.ones(len(cmd_names)), None
-        if version >= 2:
+        scale, tag_names, unit = np.ones(len(cmd_names)), None, None
+        if version == 2:
             scale, tag_names = _v2_attrs(data, len(cmd_names), file)
+        elif version >= 3:
+            unit, tag_names = _v3_attrs(data, len(cmd_names), file)
+        meta["action_limits"] = unit
         names = sorted((k for k in data if k.startswith("demo_")), key=lambda k: int(k.split("_")[1]))
         episodes = []
         problems: list[Problem] = []
         for name in names:
             try:
-                episodes.append(_read_demo(data[name], name, obs_names, cmd_names, dt, file, scale, tag_names))
+                episodes.append(_read_demo(data[name], name, obs_names, cmd_names, dt, file, scale, tag_names,
+                                           unit is not None))
             except InvalidInput as exc:
                 problems.extend(exc.problems)
             except (OSError, KeyError, ValueError, TypeError) as exc:   # truncated chunks and the like
@@ -272,23 +349,43 @@ def _read(path: Path) -> tuple[list[Episode], dict[str, Any]]:
         return episodes, meta
 
 
+def _v3_attrs(data: h5py.Group, n_cmd: int, file: str) -> tuple[tuple[np.ndarray, np.ndarray] | None, list[str]]:
+    """Format 3's action limits (None: the actions are the commands) and transition names, checked."""
+    unit = None
+    if "action_low" in data.attrs or "action_high" in data.attrs:
+        for key in ("action_low", "action_high"):
+            if key not in data.attrs:
+                raise InvalidInput(f"missing attribute {key!r} beside its pair", file=file, element="data")
+        low, high = (np.asarray(data.attrs[k], dtype=np.float64).reshape(-1) for k in ("action_low", "action_high"))
+        if low.shape != (n_cmd,) or high.shape != (n_cmd,) or not np.all(np.isfinite(high - low)) or np.any(high <= low):
+            raise InvalidInput(f"action_low/action_high must be {n_cmd} finite limits each, low below high, got "
+                               f"{low.tolist()[:8]} / {high.tolist()[:8]}", file=file, element="data")
+        unit = (low, high)
+    return unit, _transition_names(data, file)
+
+
 def _v2_attrs(data: h5py.Group, n_cmd: int, file: str) -> tuple[np.ndarray, list[str]]:
     """Format 2's action scale and transition name table, checked."""
-    for key in ("action_scale", "transition_names"):
-        if key not in data.attrs:
-            raise InvalidInput(f"missing attribute {key!r}", file=file, element="data")
+    if "action_scale" not in data.attrs:
+        raise InvalidInput("missing attribute 'action_scale'", file=file, element="data")
     scale = np.asarray(data.attrs["action_scale"], dtype=np.float64).reshape(-1)
     mant, _ = np.frexp(scale)
     if scale.shape != (n_cmd,) or not np.all(np.isfinite(scale)) or np.any(scale <= 0) or np.any(mant != 0.5):
         raise InvalidInput(f"action_scale must be {n_cmd} positive powers of two, got {scale.tolist()[:8]}",
                            file=file, element="data")
+    return scale, _transition_names(data, file)
+
+
+def _transition_names(data: h5py.Group, file: str) -> list[str]:
+    if "transition_names" not in data.attrs:
+        raise InvalidInput("missing attribute 'transition_names'", file=file, element="data")
     try:
         names = json.loads(_str(data.attrs["transition_names"]))
     except (json.JSONDecodeError, TypeError, RecursionError) as exc:
         raise InvalidInput(f"transition_names is not valid JSON ({exc})", file=file, element="data") from None
     if not isinstance(names, list) or not all(isinstance(t, str) for t in names):
         raise InvalidInput("transition_names must be a JSON list of names", file=file, element="data")
-    return scale, names
+    return names
 
 
 def _str(v: Any) -> str:
@@ -317,7 +414,7 @@ def _read_obs(g: h5py.Group, n: int, obs_names: tuple[str, ...], shape: tuple[in
 
 
 def _read_demo(g: h5py.Group, name: str, obs_names: tuple[str, ...], cmd_names: tuple[str, ...], dt: float,
-               file: str, scale: np.ndarray, tag_names: list[str] | None) -> Episode:
+               file: str, scale: np.ndarray, tag_names: list[str] | None, has_commands: bool = False) -> Episode:
     def bad(field: str, msg: str) -> InvalidInput:
         return InvalidInput(msg, file=file, element=f"data/{name}/{field}")
 
@@ -333,6 +430,13 @@ def _read_demo(g: h5py.Group, name: str, obs_names: tuple[str, ...], cmd_names: 
         raise bad("actions", f"shape {actions.shape}, expected ({n}, {len(cmd_names)})")
     if actions.dtype.kind != "f" or not np.all(np.isfinite(actions)):
         raise bad("actions", "must hold finite floats")
+    if has_commands:            # format 3 with normalised actions: the exact commands beside them
+        if "commands" not in g:
+            raise bad("commands", "missing dataset (the file has action_low/action_high)")
+        actions = g["commands"][()]
+        if actions.shape != (n, len(cmd_names)) or actions.dtype.kind != "f" or not np.all(np.isfinite(actions)):
+            raise bad("commands", f"must hold finite floats of shape ({n}, {len(cmd_names)}), "
+                                  f"got {actions.shape} {actions.dtype}")
     tags = g["transition"][()]
     if tag_names is None:
         if tags.shape != (n,) or tags.dtype.kind != "S":

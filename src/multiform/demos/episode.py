@@ -69,13 +69,20 @@ class Mentor(Protocol):
     """What a mentor (scripted or a person at a joystick) provides to the recorder.
 
     A scripted mentor stands in for a person: it may look at whatever a person would see, but the
-    robot never calls its code.
+    robot never calls its code. A task makes one with :meth:`multiform.Task.make_mentor`.
+
+    ``name`` says who the mentor is (stored with every episode and label it makes). After the
+    labels, the recorder reads an optional ``outcome`` attribute, ``"success"`` or
+    ``"failure"``: the mentor's verdict on the whole attempt (a pushed demonstration the mentor
+    recovered is a success with one failed segment); without it, a demonstration whose every
+    segment succeeded is a success.
     """
 
     name: str
 
     def reset(self, obs: np.ndarray, rng: np.random.Generator) -> None:
-        """Start a new demonstration from ``obs``."""
+        """Start a new demonstration from ``obs``; ``rng`` is seeded from the demonstration's seed.
+        A mentor whose ``reset`` also takes a ``seed`` keyword is told that seed."""
 
     def act(self, obs: np.ndarray, info: dict[str, Any], t: float) -> tuple[np.ndarray, str]:
         """Return the command for this sample and the transition the mentor is executing.

@@ -41,7 +41,7 @@ import h5py
 import numpy as np
 
 from ..adapt.learners import refit_judges
-from ..errors import InvalidInput
+from ..errors import InvalidInput, MissingInput
 from ..learn.features import Segment
 from ..learn.judge import Judge
 from ..learn.labels import ROBOT, LabelRecord, LabelStore, is_mentor, now
@@ -152,7 +152,7 @@ def read_sources(path: str | os.PathLike, model_demos: str | os.PathLike | None 
     (a practice folder or its ``traces/``), with their label-store ids (see the module docstring)."""
     path = Path(path)
     if not path.exists():
-        raise InvalidInput("file not found", file=str(path))
+        raise MissingInput("file not found", file=str(path))
     if path.is_dir():
         files = sorted((path / "traces").glob("trial_*.npz")) or sorted(path.glob("*.npz"))
         if not files:

@@ -10,14 +10,24 @@ A LeRobot v3 dataset is a folder::
     data/chunk-000/file-000.parquet      one row per frame
 
 multiform writes, per frame: ``observation.state`` (the env's observation, names in the feature's
-``names``), ``action`` (the mentor's command), ``subtask_index`` (the transition the mentor was
-executing, named in ``meta/subtasks.parquet``), ``next.done``, ``next.success`` and ``next.reward``
-(on the last frame of a successful demo), ``segment.success`` (the mentor's label of the segment the
-frame lies in: 1 success, 0 failure, -1 unlabelled; what LeRobot's reward classifier trains on), and
-LeRobot's ``timestamp``, ``frame_index``, ``episode_index``, ``index``, ``task_index``. Every episode
-row also carries its outcome, seed, reset options and labels (``multiform/...`` columns), and
-``info.json`` a ``multiform`` block (skill, env), so an export imports back exactly. Values stay
-float64 so frames equal the source bit for bit. No videos: the robot's sensors are the state.
+``names``), ``action`` (the mentor's command in the env's own units, as LeRobot's datasets hold
+actions), ``subtask_index`` (the transition the mentor was executing, named in
+``meta/subtasks.parquet``), ``next.done``, ``next.success`` and ``next.reward`` (on the last frame
+of a successful demo), ``segment.success`` (the mentor's label of the segment the frame lies in: 1
+success, 0 failure, -1 unlabelled; what LeRobot's reward classifier trains on), and LeRobot's
+``timestamp``, ``frame_index``, ``episode_index``, ``index``, ``task_index``. Every episode row also
+carries its outcome, seed, reset options and labels (``multiform/...`` columns) and, as LeRobot's
+own writer adds them, the episode's statistics of every feature (``stats/<feature>/<min|max|mean|
+std|count|q01|q10|q50|q90|q99>``); ``meta/stats.json`` has the same over the whole dataset, and
+``info.json`` a ``multiform`` block (skill, env). Values stay float64 so frames equal the source
+bit for bit. No videos: the robot's sensors are the state.
+
+At the control rate (the default) an export imports back exactly. ``fps`` lower than the control
+rate (a whole divisor of it, e.g. 50 of 1000) downsamples for policies that run at 30-100 Hz:
+frame ``k`` covers the control ticks ``[k s, (k+1) s)`` (``s`` = rate / fps; the last frame the
+ticks that remain); its state, subtask and segment label are those at its first tick, its action
+the mean command over its ticks (the constant command that, held for the frame, moves the hand as
+far as the mentor did), and the labels in ``multiform/labels`` are in frames.
 
 Reading takes any LeRobot v3 dataset with a state and an action vector; the caller names the
 variables (``state_names``), or the feature's own ``names`` are used when they are valid names.
@@ -37,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidInput
+from ..errors import InvalidInput, MissingInput
 from ..io import json_default
 from .episode import Episode, SegmentLabel
 
@@ -62,7 +72,11 @@ def _feature(dtype: str, shape: int, names: Sequence[str] | None = None) -> dict
     return {"dtype": dtype, "shape": [shape], "names": list(names) if names is not None else None}
 
 
+STATS = ("min", "max", "mean", "std", "count", "q01", "q10", "q50", "q90", "q99")
+
+
 def _stats(x: np.ndarray) -> dict[str, Any]:
+    """LeRobot's statistics of one feature over frames (per entry; ``count`` the frames)."""
     x = np.asarray(x, dtype=np.float64).reshape(len(x), -1)
     q = np.quantile(x, [0.01, 0.10, 0.50, 0.90, 0.99], axis=0)
     return {"min": x.min(0).tolist(), "max": x.max(0).tolist(), "mean": x.mean(0).tolist(),
@@ -78,9 +92,10 @@ def _segment_labels(ep: Episode) -> np.ndarray:
 
 
 def write_lerobot(out: str | os.PathLike, episodes: Sequence[Episode], skill: str, env_name: str,
-                  env_kwargs: dict[str, Any] | None = None, task: str = "") -> Path:
+                  env_kwargs: dict[str, Any] | None = None, task: str = "", fps: float | None = None) -> Path:
     """Write ``episodes`` as a LeRobot v3 dataset folder ``out`` (built beside it, then moved into
-    place; an existing non-empty ``out`` is refused)."""
+    place; an existing non-empty ``out`` is refused), at the control rate or at ``fps`` frames per
+    second, a whole divisor of it (module docstring: how frames aggregate the ticks)."""
     pa, pq = _pa()
     out = Path(out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
@@ -88,17 +103,24 @@ def write_lerobot(out: str | os.PathLike, episodes: Sequence[Episode], skill: st
     if not episodes:
         raise InvalidInput("no episodes to export", file=str(out))
     first = episodes[0]
-    fps = 1.0 / first.dt
-    if abs(fps - round(fps)) > 1e-6:
+    rate = 1.0 / first.dt
+    if abs(rate - round(rate)) > 1e-6:
         raise InvalidInput(f"LeRobot needs a whole number of frames per second; dt = {first.dt}", file=str(out))
-    fps = int(round(fps))
+    rate = int(round(rate))
+    want = rate if fps is None else fps
+    if not (want == int(want) and 0 < int(want) <= rate and rate % int(want) == 0):
+        raise InvalidInput(f"must be a whole number that divides the control rate {rate} Hz (e.g. "
+                           f"{', '.join(str(rate // d) for d in (1, 10, 20, 40) if rate % d == 0)}), got {fps:g}",
+                           element="fps")
+    fps = int(want)
+    step = rate // fps
     subtasks = sorted({str(t) for ep in episodes for t in np.unique(ep.transitions)})
     task = task or f"{skill}: the skill as the mentor demonstrated it"
     features = _features(first)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
-        total = _write_frames(tmp, out, episodes, features, {t: k for k, t in enumerate(subtasks)}, task, pa, pq)
+        total = _write_frames(tmp, out, episodes, features, {t: k for k, t in enumerate(subtasks)}, task, step, pa, pq)
         _write_meta(tmp, total, len(episodes), features, task, subtasks, fps, first.dt, skill, env_name, env_kwargs)
         if out.exists():
             out.rmdir()
@@ -127,45 +149,51 @@ def _features(first: Episode) -> dict[str, Any]:
     }
 
 
-def _frame_table(ep: Episode, e: int, index: int, sub_index: dict[str, int], dt: float) -> dict[str, np.ndarray]:
-    """Episode ``e``'s frames, column by column; its first frame is the dataset's frame ``index``."""
-    n = ep.num_samples
+def _frame_table(ep: Episode, e: int, index: int, sub_index: dict[str, int], step: int) -> dict[str, np.ndarray]:
+    """Episode ``e``'s frames, column by column, one per ``step`` control ticks (state, subtask and
+    label at the frame's first tick, the mean command over its ticks); its first frame is the
+    dataset's frame ``index``."""
+    starts = np.arange(0, ep.num_samples, step)
+    n = len(starts)
+    ticks = np.diff(np.append(starts, ep.num_samples)).reshape(n, 1)
+    actions = np.asarray(ep.actions, dtype=np.float64)
+    mean_cmd = actions[starts] if step == 1 else np.add.reduceat(actions, starts, axis=0) / ticks
     last = np.zeros(n, dtype=bool)
     last[-1:] = True
     ok = ep.outcome == "success"
     return {
-        "observation.state": ep.obs.astype(np.float64), "action": ep.actions.astype(np.float64),
-        "subtask_index": np.array([sub_index[str(t)] for t in ep.transitions], dtype=np.int64),
-        "segment.success": _segment_labels(ep),
+        "observation.state": ep.obs[starts].astype(np.float64), "action": mean_cmd,
+        "subtask_index": np.array([sub_index[str(t)] for t in ep.transitions[starts]], dtype=np.int64),
+        "segment.success": _segment_labels(ep)[starts],
         "next.reward": (last & ok).astype(np.float32), "next.done": last, "next.success": last & ok,
-        "timestamp": (np.arange(n) * dt).astype(np.float32),
+        "timestamp": (np.arange(n) * (ep.dt * step)).astype(np.float32),
         "frame_index": np.arange(n, dtype=np.int64), "episode_index": np.full(n, e, dtype=np.int64),
         "index": np.arange(index, index + n, dtype=np.int64), "task_index": np.zeros(n, dtype=np.int64),
     }
 
 
 def _write_frames(tmp: Path, out: Path, episodes: Sequence[Episode], features: dict[str, Any],
-                  sub_index: dict[str, int], task: str, pa, pq) -> int:
-    """The data files (a new one each ``FILE_MB``), the episodes' rows and the stats of state and
-    action, into ``tmp``; returns the number of frames."""
+                  sub_index: dict[str, int], task: str, step: int, pa, pq) -> int:
+    """The data files (a new one each ``FILE_MB``), the episodes' rows with their statistics, and
+    the dataset's statistics of every feature, into ``tmp``; returns the number of frames."""
     first = episodes[0]
     rows, index, file_index, file_bytes = [], 0, 0, 0
     ep_rows: list[dict[str, Any]] = []
-    states, actions = [], []
+    columns: dict[str, list[np.ndarray]] = {key: [] for key in features}
     for e, ep in enumerate(episodes):
         if ep.observation_names != first.observation_names or ep.command_names != first.command_names:
             raise InvalidInput("episodes disagree on observation or command names", file=str(out),
                                element=f"episode {e}")
-        n = ep.num_samples
-        table = _frame_table(ep, e, index, sub_index, first.dt)
+        table = _frame_table(ep, e, index, sub_index, step)
+        n = len(table["index"])
         size = sum(v.nbytes for v in table.values())
         if rows and file_bytes + size > FILE_MB * 2**20:
             _write_data(tmp, rows, features, file_index, pa, pq)
             rows, file_index, file_bytes = [], file_index + 1, 0
         rows.append(table)
         file_bytes += size
-        states.append(table["observation.state"])
-        actions.append(table["action"])
+        for key in features:
+            columns[key].append(table[key])
         ep_rows.append({
             "episode_index": e, "tasks": [task], "length": n,
             "data/chunk_index": file_index // CHUNKS_SIZE, "data/file_index": file_index % CHUNKS_SIZE,
@@ -173,15 +201,16 @@ def _write_frames(tmp: Path, out: Path, episodes: Sequence[Episode], features: d
             "meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0,
             "multiform/outcome": ep.outcome, "multiform/seed": int(ep.seed),
             "multiform/reset_options": json.dumps(ep.reset_options, default=json_default),
-            "multiform/labels": json.dumps([[lab.start, lab.end, lab.transition, bool(lab.success),
-                                             lab.labeller] for lab in ep.labels]),
+            "multiform/labels": json.dumps([[lab.start // step, -(-lab.end // step), lab.transition,
+                                             bool(lab.success), lab.labeller] for lab in ep.labels]),
+            **{f"stats/{key}/{name}": value for key in features for name, value in _stats(table[key]).items()},
         })
         index += n
     _write_data(tmp, rows, features, file_index, pa, pq)
     path = tmp / EPISODES_PATH.format(chunk_index=0, file_index=0)
     path.parent.mkdir(parents=True)
     pq.write_table(pa.Table.from_pylist(ep_rows), path)
-    stats = {"observation.state": _stats(np.concatenate(states)), "action": _stats(np.concatenate(actions))}
+    stats = {key: _stats(np.concatenate(parts)) for key, parts in columns.items()}
     (tmp / "meta/stats.json").write_text(json.dumps(stats, indent=2))
     return index
 
@@ -260,6 +289,8 @@ def read_lerobot(root: str | os.PathLike, state_names: Sequence[str] | None = No
 def _read_info(root: Path) -> tuple[dict[str, Any], float]:
     """``meta/info.json`` of a v3 dataset with a ``features`` mapping, and its fps."""
     file = str(root / "meta/info.json")
+    if not root.exists():
+        raise MissingInput("no such folder", file=str(root))
     try:
         info = json.loads((root / "meta/info.json").read_text(encoding="utf-8"))
     except FileNotFoundError:

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import functools
+import inspect
 from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
+from ..errors import InvalidInput
 from ..parallel import WorkerState, mp_context, ray_backend, task_key
 from ..runtime.contract import env_contract
 from .episode import Episode, Mentor
@@ -56,7 +59,7 @@ def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, A
     """
     obs_names, cmd_names, dt = env_contract(env)
     obs, info = env.reset(seed=seed, options=options)
-    mentor.reset(obs, np.random.default_rng([seed, 1]))
+    _reset(mentor, obs, np.random.default_rng([seed, 1]), seed)
     obs_rows, act_rows, tags = [], [], []
     t = 0.0
     limit = max_steps if max_steps is not None else 10**9
@@ -89,6 +92,14 @@ def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, A
     return episode
 
 
+def _reset(mentor: Mentor, obs: np.ndarray, rng: np.random.Generator, seed: int) -> None:
+    """``mentor.reset``, told the demonstration's seed when it takes a ``seed`` argument."""
+    params = inspect.signature(mentor.reset).parameters.values()
+    if any(p.name == "seed" or p.kind is p.VAR_KEYWORD for p in params):
+        mentor.reset(obs, rng, seed=seed)
+    else:
+        mentor.reset(obs, rng)
+
 def _setup(task: Any, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any]) -> dict[str, Any]:
     import multiform.envs  # noqa: F401  (registers the envs; a spawned worker has not imported them)
 
@@ -109,10 +120,10 @@ def _pool_init(task: Any, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, A
 
 
 def demonstration_in_worker(task: str, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any],
-                            seed: int) -> Episode:
+                            seed: int, starts: str = "demo") -> Episode:
     """One scripted-mentor demonstration in a worker that may record many (a Ray worker)."""
     _WORKER.ensure(_key(task, env_kwargs, mentor_kwargs), task, env_kwargs, mentor_kwargs)
-    return _record(seed)
+    return _record(seed, starts)
 
 
 def demo_push(task: Any, seed: int) -> PushDuring | None:
@@ -122,41 +133,48 @@ def demo_push(task: Any, seed: int) -> PushDuring | None:
     return PushDuring(**spec) if spec else None
 
 
-def _record(seed: int) -> Episode:
+def _record(seed: int, starts: str = "demo") -> Episode:
     w = _WORKER.state
+    if starts == "trial":          # the evaluation trials' starts, no experimenter's push
+        return record_episode(w["env"], w["mentor"], seed, w["task"].trial_options(seed))
     return record_episode(w["env"], w["mentor"], seed, w["task"].demo_options(seed), push=demo_push(w["task"], seed))
 
 
 def record_many(task: Any, seeds: list[int], env_kwargs: dict[str, Any] | None = None,
                 mentor_kwargs: dict[str, Any] | None = None, workers: int = 1,
-                progress: Any = None, start_method: str | None = None, ray: str | None = None) -> list[Episode]:
+                progress: Any = None, start_method: str | None = None, ray: str | None = None,
+                starts: str = "demo") -> list[Episode]:
     """Record one demonstration per seed with the task's scripted mentor, on ``workers`` processes
     (``start_method``: see :func:`multiform.parallel.mp_context`), or as Ray tasks with ``ray``
     (``auto``, ``local`` or a cluster address). ``task`` is a :class:`~multiform.task.Task` or what
     :func:`~multiform.task.load_task` reads (spawned and Ray workers need the latter).
 
     ``progress`` is called with (done, total) after each demo. The result is in seed order and does
-    not depend on the number of workers nor on where they run.
+    not depend on the number of workers nor on where they run. ``starts="trial"`` starts each from
+    the task's ``trial_options(seed)`` instead of its ``demo_options(seed)``, without the
+    experimenter's push (the mentor on the robot's evaluation starts).
     """
+    if starts not in ("demo", "trial"):
+        raise InvalidInput(f"starts must be 'demo' or 'trial', got {starts!r}", element="starts")
     from concurrent.futures import ProcessPoolExecutor
 
     import multiform.envs  # noqa: F401  (registers the envs)
 
     env_kwargs, mentor_kwargs = dict(env_kwargs or {}), dict(mentor_kwargs or {})
     if ray:
-        return ray_backend().record_demos(demonstration_in_worker, task, seeds, env_kwargs, mentor_kwargs, ray,
-                                          num_cpus=max(1, workers), progress=progress)
+        return ray_backend().record_demos(functools.partial(demonstration_in_worker, starts=starts), task, seeds,
+                                          env_kwargs, mentor_kwargs, ray, num_cpus=max(1, workers), progress=progress)
     out: list[Episode] = []
     if workers <= 1:
         for i, s in enumerate(seeds):
-            out.append(demonstration_in_worker(task, env_kwargs, mentor_kwargs, s))
+            out.append(demonstration_in_worker(task, env_kwargs, mentor_kwargs, s, starts))
             if progress:
                 progress(i + 1, len(seeds))
         _WORKER.clear()
         return out
     with ProcessPoolExecutor(max_workers=workers, mp_context=mp_context(start_method), initializer=_pool_init,
                              initargs=(task, env_kwargs, mentor_kwargs)) as pool:
-        for i, ep in enumerate(pool.map(_record, seeds)):
+        for i, ep in enumerate(pool.map(functools.partial(_record, starts=starts), seeds)):
             out.append(ep)
             if progress:
                 progress(i + 1, len(seeds))

@@ -63,6 +63,14 @@ pendulum task's evaluation applies.
 
 ``normalize_actions=True`` gives the action space [-1, 1] per entry, scaled to the limits above
 (±1.5 m/s, or the torque limits); the default keeps the physical units.
+
+``frame_skip`` (default 1): physics steps per env step, the action held over them (the servo and
+the pushes still run every 1 ms), as Gymnasium's MuJoCo envs have it: ``dt`` is ``0.001 *
+frame_skip``, ``render_fps`` ``1000 / frame_skip``, the reward the sum over the skipped steps. Use it
+to control at 25-100 Hz or to record videos: Gymnasium's ``RecordVideo`` keeps one frame per step
+until the episode ends, so at 1 kHz a 60 s episode is 60,000 frames (31 GB at 480×360); with
+``frame_skip=40, width=320, height=240`` it is 1,500 frames, about 350 MB (``max_episode_steps=1500``
+keeps the 60 s limit, which ``gymnasium.make`` counts in steps). multiform's own runs use 1.
 """
 
 from __future__ import annotations
@@ -77,7 +85,7 @@ import mujoco
 import numpy as np
 
 from .osc import DEFAULT_GAINS, OBSERVATION_NAMES, TORQUE_LIMITS, Gains, Workspace, task_acceleration_list, torques_for
-from .rendering import make_renderer
+from .rendering import check_frame_skip, make_renderer, skip_frames
 
 COMMAND_NAMES = ("v_cmd",)
 NOMINAL = {"length": 0.4, "mass": 0.1, "damping": 2e-4}
@@ -138,15 +146,16 @@ class ArmPendulumEnv(gym.Env):
     they are over half a frame's cost: 37 against 16 ms at 480×360).
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 1000}       # one frame per 1 ms step
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 1000}       # one frame per step: 1000 / frame_skip
     observation_names = OBSERVATION_NAMES
     command_names = COMMAND_NAMES
 
     def __init__(self, render_mode: str | None = None, action_mode: str = "ee", gains: Gains | None = None,
                  width: int = 480, height: int = 360, camera: str = "front", shadows: bool = True,
-                 normalize_actions: bool = False):
+                 normalize_actions: bool = False, frame_skip: int = 1):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None")
+        self.frame_skip = check_frame_skip(frame_skip)
         if action_mode not in ("ee", "torque"):
             raise ValueError(f"action_mode must be 'ee' or 'torque', not {action_mode!r}")
         self.render_mode = render_mode
@@ -157,7 +166,9 @@ class ArmPendulumEnv(gym.Env):
         self.model = load_model()
         self.data = mujoco.MjData(self.model)
         m = self.model
-        self.dt = float(m.opt.timestep)
+        self._h = float(m.opt.timestep)                   # one physics step
+        self.dt = self._h * self.frame_skip                # one env step
+        self.metadata = {**type(self).metadata, "render_fps": int(round(1.0 / self.dt))}
         self.workspace_centre = tuple(self.gains.centre)
         self.x_limit = float(self.gains.x_limit)
         self.torque_limits = TORQUE_LIMITS
@@ -171,7 +182,7 @@ class ArmPendulumEnv(gym.Env):
         if normalize_actions:
             self._action_unit = self.action_space.high.copy()
             self.action_space = gym.spaces.Box(-1.0, 1.0, self._action_unit.shape, dtype=np.float64)
-        self._hold_steps = int(math.ceil(SUCCESS_HOLD / self.dt - 1e-9))
+        self._hold_steps = int(math.ceil(SUCCESS_HOLD / self._h - 1e-9))
         self._upright = 0
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (len(OBSERVATION_NAMES),), dtype=np.float64)
         key = m.key("home").id
@@ -310,6 +321,11 @@ class ArmPendulumEnv(gym.Env):
 
     # ------------------------------------------------------------------- step
     def step(self, action):
+        if self.frame_skip == 1:
+            return self._physics_step(action)
+        return skip_frames(self._physics_step, action, self.frame_skip)
+
+    def _physics_step(self, action):
         m, d = self.model, self.data
         if self._action_unit is not None:
             action = self._action_unit * np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
@@ -345,7 +361,7 @@ class ArmPendulumEnv(gym.Env):
                or self.flange_tilt_squared() > TERMINATE_TILT ** 2)
         upright = abs(self.pendulum_angle()) < SUCCESS_ANGLE
         self._upright = self._upright + 1 if upright else 0
-        return obs, self.dt if upright else 0.0, out, False, {
+        return obs, self._h if upright else 0.0, out, False, {
             "diverged": False, "out_of_workspace": out, "disturbance": self._applied,
             "is_success": self._upright >= self._hold_steps}
 

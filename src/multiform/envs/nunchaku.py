@@ -96,7 +96,7 @@ import numpy as np
 
 from ..angles import wrap_angle
 from .load_estimator import LoadEstimator
-from .rendering import make_renderer
+from .rendering import check_frame_skip, make_renderer, skip_frames
 
 OBSERVATION_NAMES = ("hand_x", "hand_z", "hand_q", "hand_vx", "hand_vz", "hand_wq", "ft_fx", "ft_fz",
                      "ft_ty", "grip", "touch", "prox", "phi", "omega", "load")
@@ -134,18 +134,21 @@ class NunchakuEnv(gym.Env):
 
     ``max_duration`` [s] truncates an episode; ``capture`` [m] is the magnet's reach from the palm;
     ``width``/``height`` size the ``rgb_array`` frames, ``shadows`` False renders them without
-    shadows (much cheaper on a CPU renderer). ``dt`` is 0.001 s (one control step = one physics step).
+    shadows (much cheaper on a CPU renderer). ``dt`` is 0.001 s (one control step = one physics step)
+    times ``frame_skip`` (default 1; physics steps per env step, the action held, as in
+    :class:`multiform.envs.arm_pendulum.ArmPendulumEnv`: for control at a lower rate and videos).
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 1000}       # one frame per 1 ms step
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 1000}       # one frame per step: 1000 / frame_skip
     observation_names = OBSERVATION_NAMES
     command_names = COMMAND_NAMES
 
     def __init__(self, render_mode: str | None = None, max_duration: float = 15.0, capture: float = 0.03,
                  settle: float = 0.25, width: int = 480, height: int = 360, shadows: bool = True,
-                 normalize_actions: bool = False):
+                 normalize_actions: bool = False, frame_skip: int = 1):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None")
+        self.frame_skip = check_frame_skip(frame_skip)
         self.render_mode = render_mode
         self.max_duration = float(max_duration)
         self.capture = float(capture)
@@ -156,7 +159,9 @@ class NunchakuEnv(gym.Env):
         # no silent reset on bad values: a non-finite state ends the step as ``non_finite``
         self.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
         self.data = mujoco.MjData(self.model)
-        self.dt = float(self.model.opt.timestep)
+        self._h = float(self.model.opt.timestep)          # one physics step
+        self.dt = self._h * self.frame_skip                # one env step
+        self.metadata = {**type(self).metadata, "render_fps": int(round(1.0 / self.dt))}
         m = self.model
         self.action_space = gym.spaces.Box(np.array([-3.0, -3.0, -20.0, 0.0]), np.array([3.0, 3.0, 20.0, 1.0]),
                                            dtype=np.float64)
@@ -279,7 +284,7 @@ class NunchakuEnv(gym.Env):
         """The robot has just picked the nunchaku up and holds still for a moment; it weighs it (the
         wrist's vertical load minus the hand's own weight) so the estimator's masses fit. Returns
         the observation after."""
-        n_settle = int(round(self.settle / self.dt))
+        n_settle = int(round(self.settle / self._h))
         load = 0.0
         hold = np.array([0.0, 0.0, 0.0, 1.0])
         for _ in range(n_settle):
@@ -318,6 +323,11 @@ class NunchakuEnv(gym.Env):
 
     # ------------------------------------------------------------------- step
     def step(self, action):
+        if self.frame_skip == 1:
+            return self._physics_step(action)
+        return skip_frames(self._physics_step, action, self.frame_skip)
+
+    def _physics_step(self, action):
         if self._action_box is not None:
             lo, hi = self._action_box
             action = lo + (np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0) + 1.0) * 0.5 * (hi - lo)
@@ -334,12 +344,12 @@ class NunchakuEnv(gym.Env):
             f["released"] = True
             f["touched"] = f["touched"] or self.back_of_hand_touch() > FLIP_TOUCH
         f["held_b"] = f["held_b"] + 1 if self._held == 1 else 0
-        if f["released"] and f["touched"] and f["held_b"] * self.dt >= FLIP_HOLD - 1e-9:
+        if f["released"] and f["touched"] and f["held_b"] * self._h >= FLIP_HOLD - 1e-9:
             f["done"] = True
 
     def _step(self, action):
         m, d = self.model, self.data
-        dt = self.dt
+        dt = self._h
         vx = min(max(float(action[0]), -3.0), 3.0)
         vz = min(max(float(action[1]), -3.0), 3.0)
         wq = min(max(float(action[2]), -20.0), 20.0)
@@ -483,7 +493,7 @@ class NunchakuEnv(gym.Env):
         x, z, q = qpos[self._qx], qpos[self._qz], qpos[self._qq]
         vx, vz, w = qvel[self._vx], qvel[self._vz], qvel[self._vq]
         if self._held >= 0 and estimate:
-            self._phi, self._omega = self.estimator.update((fx, fz), q, w, alpha, ax, az, self.dt)
+            self._phi, self._omega = self.estimator.update((fx, fz), q, w, alpha, ax, az, self._h)
             px, pz = self.estimator.pull
             self._load = math.hypot(px, pz)
         elif self._held < 0:

@@ -1,46 +1,12 @@
-"""Which OpenGL MuJoCo renders offscreen with, chosen before MuJoCo is imported.
-
-MuJoCo reads ``MUJOCO_GL`` once, when it is first imported; without it, it takes GLFW, which needs
-a display, and a headless process then fails at the first frame ("OpenGL platform library has not
-been loaded"). Importing :mod:`multiform` (or :mod:`multiform.envs`) therefore sets ``MUJOCO_GL``
-when the user has not: ``egl`` if an EGL library with a vendor driver is installed (Debian:
-``libegl1`` and ``libegl-mesa0``), else ``osmesa`` (``libosmesa6``). A value the user set is kept.
-"""
+"""MuJoCo's offscreen renderer, with a message that says what to install when it cannot start, and
+the envs' frame skip (fewer, longer env steps: the rate at which frames are rendered and recorded).
+The OpenGL backend itself is chosen by :mod:`multiform._gl` before MuJoCo is imported."""
 
 from __future__ import annotations
 
-import ctypes.util
-import glob
 import os
-import sys
 
-INSTALL_HINT = ("install EGL (Debian: libegl1 libegl-mesa0) or OSMesa (libosmesa6), "
-                "or set MUJOCO_GL before Python starts")
-
-
-def _egl_available() -> bool:
-    vendors = glob.glob("/usr/share/glvnd/egl_vendor.d/*.json") + glob.glob("/etc/glvnd/egl_vendor.d/*.json")
-    return ctypes.util.find_library("EGL") is not None and (
-        bool(vendors) or ctypes.util.find_library("EGL_mesa") is not None)
-
-
-def _osmesa_available() -> bool:
-    return ctypes.util.find_library("OSMesa") is not None
-
-
-def choose_gl() -> str | None:
-    """Set ``MUJOCO_GL`` if unset and MuJoCo not yet imported; returns the backend in effect
-    (None: nothing offscreen found, or MuJoCo was imported first with its own default)."""
-    chosen = os.environ.get("MUJOCO_GL")
-    if chosen:
-        return chosen
-    if "mujoco" in sys.modules:
-        return None
-    for name, available in (("egl", _egl_available), ("osmesa", _osmesa_available)):
-        if available():
-            os.environ["MUJOCO_GL"] = name
-            return name
-    return None
+from .._gl import BACKEND, INSTALL_HINT, _egl_available, _osmesa_available, choose_gl  # noqa: F401
 
 
 def make_renderer(model, height: int, width: int):
@@ -58,4 +24,20 @@ def make_renderer(model, height: int, width: int):
                            f"{INSTALL_HINT}") from exc
 
 
-BACKEND = choose_gl()
+def check_frame_skip(frame_skip: int) -> int:
+    """``frame_skip`` as a whole number of at least 1 (physics steps per env step)."""
+    if isinstance(frame_skip, bool) or int(frame_skip) != frame_skip or frame_skip < 1:
+        raise ValueError(f"frame_skip must be a whole number of at least 1, got {frame_skip!r}")
+    return int(frame_skip)
+
+
+def skip_frames(physics_step, action, frame_skip: int):
+    """``frame_skip`` physics steps with ``action`` held, as one env step: the last step's
+    observation and info, the summed reward; stops early when a step terminates or truncates."""
+    reward = 0.0
+    for _ in range(frame_skip):
+        obs, r, terminated, truncated, info = physics_step(action)
+        reward += r
+        if terminated or truncated:
+            break
+    return obs, reward, terminated, truncated, info

@@ -29,7 +29,7 @@ from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 
-from ..errors import InvalidInput
+from ..errors import InvalidInput, MissingInput
 from ..io import load_npz, save_npz
 from .fast_svm import FastDecision
 from .features import as_str_list, check_names
@@ -187,7 +187,7 @@ def load_condition(path: str | os.PathLike, input_names: Sequence[str] | None = 
         with np.load(path, allow_pickle=False) as npz:
             header = str(npz["__format__"]) if "__format__" in npz.files else ""
     except FileNotFoundError:
-        raise InvalidInput("file not found", file=f) from None
+        raise MissingInput("file not found", file=f) from None
     except Exception as exc:
         raise InvalidInput(f"not a valid .npz file ({type(exc).__name__}: {exc})", file=f) from None
     if '"kind": "region_condition"' in header:

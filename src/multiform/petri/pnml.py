@@ -12,8 +12,12 @@ declaration, and takes nets other tools wrote (pm4py's constructors and miners):
 (one without our net-level block) gets valid ids made from its names or ids (``({'a'}, {'b'})`` →
 ``a_b``, a UUID transition labelled ``a`` → ``a``), the original names kept as labels; a place and a
 transition may share an id there (arcs tell which is meant); its final places are those of its
-final markings, or, with none given, its sink places. Duplicate ids of one kind, counts out of
-range and data nested too deeply are refused by name.
+final markings (any other sink place that a transition feeds, a dead end, is a failure place), or, with none given, its
+sink places; a net named as tools name the nets they make (``imported_1733312345.67``,
+``imdf_net_1733312345``) takes the file's name instead. Other tools keep the structure, the names
+and the markings but drop the ``multiform`` block: conditions become ``true`` and laws are
+unassigned. Duplicate ids of one kind, counts out of range and data nested too deeply are refused
+by name.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
 
-from ..errors import InvalidInput, Problem
+from ..errors import InvalidInput, MissingInput, Problem
 from ..io import write_text
 from .net import APN
 from .skillfile import IDENT, MAX_COUNT, build_apn, skill_to_data
@@ -34,6 +38,8 @@ NS = "http://www.pnml.org/version-2009/grammar/pnml"
 PTNET = "http://www.pnml.org/version-2009/grammar/ptnet"
 TOOL = "multiform"
 TOOL_VERSION = "1"
+# the names tools give nets they make: pm4py's "imported_<time>", "imdf_net_<time>", ... (a Unix time)
+GENERATED_NAME = re.compile(r"^[A-Za-z_]+_\d{9,}(\.\d+)?$")
 MAX_JSON_CHARS = 1_000_000       # one toolspecific block; the bundled skills need < 10 kB
 MAX_JSON_DEPTH = 32              # skill data nests 5 levels deep
 
@@ -230,8 +236,10 @@ def from_pnml(text: str | bytes, file: str = "<string>") -> APN:
     for c in containers:
         nodes.extend(c)
         nodes.extend(x for sub in _findall(c, "page") for x in sub)  # nested pages, flattened
-    name = _text_of(_find(net, "name")) or net.get("id") or Path(file).stem
     ours = _tool(net, TOOL)
+    name = _text_of(_find(net, "name")) or net.get("id") or ""
+    if ours is None and (not name or GENERATED_NAME.match(name)):
+        name = re.sub(r"[^A-Za-z0-9_]+", "_", Path(file).stem).strip("_") or "imported_net"
     skill = _json(_find(ours, "skill"), "skill", file, "net")
     data: dict[str, Any] = {"skill": name, **skill}
     problems: list[Problem] = []
@@ -261,11 +269,8 @@ def from_pnml(text: str | bytes, file: str = "<string>") -> APN:
             transitions[pid] = _transition_spec(el, label, where, file)
 
     _add_arcs(nodes, elements, ids, transitions, file, problems)
-    if ours is None and not final_ids and not any(s.get("final") for s in places.values()):
-        feeding = {p for t in transitions.values() for p in t["in"]}
-        for pid, spec in places.items():
-            if pid not in feeding and pid not in marking:
-                spec["final"] = "success"
+    if ours is None:
+        _foreign_finals(places, transitions, marking, bool(final_ids))
     data["places"] = places
     data["transitions"] = transitions
     data["initial_marking"] = marking
@@ -273,6 +278,23 @@ def from_pnml(text: str | bytes, file: str = "<string>") -> APN:
     if problems:
         raise InvalidInput(problems)
     return apn
+
+
+def _foreign_finals(places: dict[str, Any], transitions: dict[str, Any], marking: dict[str, int],
+                    has_final_marking: bool) -> None:
+    """Final places of a net another tool wrote (which keeps no ``final:`` of its own): the places
+    of its final marking are successes; with none, every sink place is. A sink place outside a
+    final marking (a dead end such as a skill's ``failure``, whose kind only multiform's block
+    carried) is a failure: where the skill stops without success, not a deadlock."""
+    feeding = {p for t in transitions.values() for p in t["in"]}
+    fed = {p for t in transitions.values() for p in t["out"]}
+    for pid, spec in places.items():
+        if pid in feeding or pid in marking or spec.get("final"):
+            continue
+        if not has_final_marking:
+            spec["final"] = "success"
+        elif pid in fed:
+            spec["final"] = "failure"
 
 
 def _elements(nodes: list[ET.Element], file: str, problems: list[Problem]
@@ -387,6 +409,8 @@ def read_pnml(path: str | os.PathLike) -> APN:
     path = Path(path)
     try:
         data = path.read_bytes()
+    except FileNotFoundError:
+        raise MissingInput("file not found", file=str(path)) from None
     except OSError as exc:
         raise InvalidInput(f"cannot read ({exc})", file=str(path)) from None
     return from_pnml(data, str(path))

@@ -17,7 +17,7 @@ from typing import Any
 
 import yaml
 
-from ..errors import InvalidInput, Problem
+from ..errors import InvalidInput, MissingInput, Problem
 from .guard import GuardError, parse_guard
 from .net import APN, FINAL_KINDS, Condition, Law, Place, Transition, condition_names, is_clock
 
@@ -77,7 +77,7 @@ def resolve_skill(name_or_path: str | os.PathLike) -> Path:
     skills = bundled_skills()
     if str(name_or_path) in skills:
         return skills[str(name_or_path)]
-    raise InvalidInput(f"no such file, and not a bundled skill ({', '.join(sorted(skills))})",
+    raise MissingInput(f"no such file, and not a bundled skill ({', '.join(sorted(skills))})",
                        file=str(name_or_path))
 
 
@@ -87,7 +87,7 @@ def load_skill(path: str | os.PathLike) -> APN:
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise InvalidInput("file not found", file=str(path)) from None
+        raise MissingInput("file not found", file=str(path)) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise InvalidInput(f"cannot read ({exc})", file=str(path)) from None
     return parse_skill(text, str(path))

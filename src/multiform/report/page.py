@@ -128,7 +128,8 @@ def _learning(s: dict) -> str:
         return ""
     agree = s.get("mentor_agreement", {})
     text = (f"{s['trials']} trials, every other one exploring; {s['plain_successes']} of {s['plain_trials']} plain trials "
-            f"succeeded; {s['own_segments']} segments of its own graded successful joined its laws' training data; "
+            f"succeeded; {s['own_segments']} of its own segments, graded successful by its judges, joined its laws' "
+            "training data; "
             + (f"the mentor graded or took over {s['mentor_labelled_trials']} trials (it took over {s['mentor_takeovers']} "
                f"failed ones, demonstrating from where the robot knew least)" if s.get("mentor_takeovers")
                else f"the mentor graded {s['mentor_labelled_trials']} trials"))

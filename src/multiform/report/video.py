@@ -2,7 +2,7 @@
 
 A trial or demo keeps joint-position snapshots (``qpos``), not images; :func:`render_qpos` turns
 them into frames with MuJoCo's offscreen renderer (``MUJOCO_GL=egl`` works without a display or
-GPU), and :func:`write_mp4` encodes frames with imageio-ffmpeg, atomically (a temporary file in the
+GPU), and :func:`write_mp4` encodes frames with the ``ffmpeg`` program (H.264 by libx264), atomically (a temporary file in the
 same directory, renamed when complete). :func:`replay` rebuilds the snapshots of a recorded
 episode by replaying its commands from its seed.
 """
@@ -11,6 +11,10 @@ from __future__ import annotations
 
 import functools
 import os
+import re
+import shutil
+import subprocess
+import tempfile
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -24,14 +28,25 @@ from ..envs.rendering import make_renderer
 from ..io import atomic_path
 
 
+FFMPEG_HINT = "install the ffmpeg program (Debian: apt-get install ffmpeg) or name it in MULTIFORM_FFMPEG"
+
+
+def ffmpeg() -> str:
+    """The ``ffmpeg`` program videos are encoded with: ``MULTIFORM_FFMPEG``, else the one on the
+    PATH (Debian's: GPL-2+, with libx264). multiform ships no ffmpeg of its own."""
+    exe = shutil.which(os.environ.get("MULTIFORM_FFMPEG") or "ffmpeg")
+    if not exe:
+        raise RuntimeError(f"videos need ffmpeg: {FFMPEG_HINT}")
+    return exe
+
+
 def write_mp4(frames: Iterable[np.ndarray], path: str | os.PathLike, fps: float = 30.0, quality: int = 7) -> Path:
     """Encode ``frames`` (H×W×3 uint8, all the same size) as an H.264 MP4 at ``path``, atomically.
 
-    ``frames`` may be a generator; it is consumed once. Returns the path. Raises ``ValueError`` when
-    there are no frames or they are not RGB images of one size.
+    ``frames`` may be a generator; it is consumed once. ``quality`` 0..10 (higher is better; 7 is
+    libx264's CRF 15). Returns the path. Raises ``ValueError`` when there are no frames or they are
+    not RGB images of one size, ``RuntimeError`` when ffmpeg is missing or fails.
     """
-    import imageio_ffmpeg
-
     path = Path(path)
     it = iter(frames)
     first = next(it, None)
@@ -39,18 +54,41 @@ def write_mp4(frames: Iterable[np.ndarray], path: str | os.PathLike, fps: float 
         raise ValueError("no frames to write")
     first = _check_frame(first, None)
     h, w = first.shape[:2]
+    crf = int(round((1.0 - min(max(quality, 0), 10) / 10.0) * 51))
     with atomic_path(path, suffix=".mp4") as tmp:
-        writer = imageio_ffmpeg.write_frames(str(tmp), (w, h), fps=float(fps), codec="libx264",
-                                             pix_fmt_out="yuv420p", quality=quality, macro_block_size=2,
-                                             ffmpeg_log_level="error")
-        writer.send(None)
-        try:
-            writer.send(np.ascontiguousarray(first))
-            for frame in it:
-                writer.send(np.ascontiguousarray(_check_frame(frame, (h, w))))
-        finally:
-            writer.close()
+        cmd = [ffmpeg(), "-hide_banner", "-loglevel", "error", "-y", "-f", "rawvideo", "-pix_fmt", "rgb24",
+               "-s", f"{w}x{h}", "-r", f"{float(fps):g}", "-i", "-", "-an", "-c:v", "libx264", "-pix_fmt", "yuv420p",
+               "-crf", str(crf), "-f", "mp4", str(tmp)]
+        with tempfile.TemporaryFile() as err:
+            proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=err)
+            try:
+                proc.stdin.write(np.ascontiguousarray(first).tobytes())
+                for frame in it:
+                    proc.stdin.write(np.ascontiguousarray(_check_frame(frame, (h, w))).tobytes())
+                proc.stdin.close()
+            except BrokenPipeError:
+                pass
+            finally:
+                if proc.poll() is None and not proc.stdin.closed:
+                    proc.stdin.close()
+                code = proc.wait()
+            if code:
+                err.seek(0)
+                raise RuntimeError(f"ffmpeg could not write {path} (exit {code}): "
+                                   f"{err.read().decode(errors='replace').strip()[-500:]}")
     return path
+
+
+def read_mp4(path: str | os.PathLike) -> np.ndarray:
+    """Every frame of a video as one (frames, H, W, 3) uint8 array, decoded by the same ffmpeg."""
+    probe = subprocess.run([ffmpeg(), "-hide_banner", "-i", str(path)], capture_output=True, text=True)
+    size = re.search(r"Video:.*?(\d{2,5})x(\d{2,5})", probe.stderr)
+    if size is None:
+        raise ValueError(f"{path}: no video stream found")
+    w, h = int(size.group(1)), int(size.group(2))
+    out = subprocess.run([ffmpeg(), "-hide_banner", "-loglevel", "error", "-i", str(path), "-f", "rawvideo",
+                          "-pix_fmt", "rgb24", "-"], capture_output=True, check=True)
+    return np.frombuffer(out.stdout, dtype=np.uint8).reshape(-1, h, w, 3)
 
 
 def _check_frame(frame: Any, size: tuple[int, int] | None) -> np.ndarray:
