@@ -169,7 +169,7 @@ class Job:
                 "robot_seconds": round(sum(t.duration for t in state.trials), 1),
                 **(_learning_summary(state) if cfg.learn else {})}
             self.log(f"  {sc.name}: {len(state.trials)} trials, revisions: "
-                     + (", ".join(f"{r['operator']} {r['target']}" for r in revs) or "none")
+                     + (", ".join(f"{r.operator} {r.target}" for r in revs) or "none")
                      + f"; {state.stop_reason}")
         return results
 
