@@ -28,8 +28,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _timing import describe, single_thread  # noqa: E402
 
-from multiform.demos.pendulum_mentor import PendulumMentor  # noqa: E402
-from multiform.demos.record import record_episode  # noqa: E402
+from multiform.tasks.pendulum_mentor import PendulumMentor  # noqa: E402
+from multiform.teach.record import record_episode  # noqa: E402
 from multiform.envs.arm_pendulum import ArmPendulumEnv  # noqa: E402
 from multiform.envs.osc import ReferenceController  # noqa: E402
 

@@ -72,7 +72,7 @@ def heldout_episodes(test_dataset: str | None, record: int, seed: int, task: str
             return eps
     if not record:
         return []
-    from multiform.demos.record import record_many
+    from multiform.teach.record import record_many
 
     t = load_task(task)
     seeds = [seed + i for i in range(record)]

@@ -65,7 +65,7 @@ def probe(model: SkillModel, law: str) -> list[tuple[str, float]]:
 def energy_coverage(model: SkillModel, law: str) -> str:
     """For the pendulum's swing-up: the law's samples (mentor's successful segments and their mirror
     images) by energy above the top, ``E / g = (λω²/2 + g(cos θ − 1)) / g`` with the mentor's ``λ``."""
-    from multiform.demos.pendulum_mentor import G, NOMINAL, equivalent_length
+    from multiform.tasks.pendulum_mentor import G, NOMINAL, equivalent_length
     from multiform.learn.views import law_data, mirror_episode
 
     apn, eps = model.history.version(0), model.episodes

@@ -30,7 +30,7 @@ import yaml  # noqa: E402
 
 import multiform.envs  # noqa: E402,F401
 from multiform.demos.dataset import read_dataset  # noqa: E402
-from multiform.demos.record import record_many  # noqa: E402
+from multiform.teach.record import record_many  # noqa: E402
 from multiform.learn.training import fit_law  # noqa: E402
 from multiform.learn.views import law_data  # noqa: E402
 from multiform.petri.skillfile import load_skill, parse_skill, skill_to_data  # noqa: E402

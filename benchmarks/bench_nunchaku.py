@@ -20,8 +20,8 @@ import warnings
 
 import numpy as np
 
-from multiform.demos.nunchaku_mentor import NunchakuMentor
-from multiform.demos.record import record_episode
+from multiform.tasks.nunchaku_mentor import NunchakuMentor
+from multiform.teach.record import record_episode
 from multiform.envs.nunchaku import OBSERVATION_NAMES, NunchakuEnv
 from multiform.stats import wilson
 

@@ -37,7 +37,7 @@ task = load_task("pendulum")
 
 def small_model(root: Path) -> Path:
     from multiform.demos.dataset import write_dataset
-    from multiform.demos.record import record_many
+    from multiform.teach.record import record_many
     from multiform.job import train_model
     from multiform.model import SkillModel
     eps = record_many("pendulum", [0, 1, 2, 9], task.DEMO_ENV_KWARGS, workers=2)

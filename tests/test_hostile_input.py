@@ -18,7 +18,7 @@ import pytest
 
 from multiform.cli import EXIT_MISSING, main
 from multiform.demos.dataset import write_dataset
-from multiform.demos.record import record_many
+from multiform.teach.record import record_many
 from multiform.job import train_model
 from multiform.model import SkillModel
 from multiform.petri.skillfile import resolve_skill

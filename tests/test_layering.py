@@ -10,8 +10,8 @@ import multiform
 
 ROOT = Path(multiform.__file__).parent
 METHOD = ("petri", "learn", "adapt", "runtime")
-FORBIDDEN = ("multiform.envs", "multiform.tasks", "multiform.demos.record", "multiform.demos.teleop",
-             "multiform.demos.pendulum_mentor", "multiform.demos.nunchaku_mentor", "multiform.job", "multiform.cli")
+FORBIDDEN = ("multiform.envs", "multiform.tasks", "multiform.teach.record", "multiform.teach.teleop",
+             "multiform.tasks.pendulum_mentor", "multiform.tasks.nunchaku_mentor", "multiform.job", "multiform.cli")
 
 
 def module_name(path: Path) -> str:

@@ -21,7 +21,7 @@ def test_the_local_pool_forks_on_linux_and_refuses_an_unknown_start_method():
 
 
 def test_the_core_never_imports_ray():
-    code = ("import sys, multiform.cli, multiform.job, multiform.evaluation, multiform.demos.record, "
+    code = ("import sys, multiform.cli, multiform.job, multiform.evaluation, multiform.teach.record, "
             "multiform.parallel; print('ray' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
@@ -55,7 +55,7 @@ def test_env_modules_the_caller_allowed_travel_to_spawned_workers(tmp_path, monk
 
     from multiform.evaluation import Variant, evaluate
     from multiform.demos.dataset import write_dataset
-    from multiform.demos.record import record_many
+    from multiform.teach.record import record_many
     from multiform.job import train_model
     from multiform.model import SkillModel
     from multiform.task import load_task

@@ -24,7 +24,7 @@ import multiform
 from multiform.evaluation import Variant, evaluate
 from multiform.cli import main
 from multiform.demos.dataset import read_dataset, write_dataset
-from multiform.demos.record import record_many
+from multiform.teach.record import record_many
 from multiform.errors import InvalidInput
 from multiform.job import train_model
 from multiform.model import SkillModel

@@ -34,7 +34,7 @@ _EXPORTS = {
     "Episode": "multiform.demos.episode", "SegmentLabel": "multiform.demos.episode",
     "write_dataset": "multiform.demos.dataset", "read_dataset": "multiform.demos.dataset",
     "Dataset": "multiform.demos.dataset",
-    "record_episode": "multiform.demos.record", "Mentor": "multiform.demos.episode",
+    "record_episode": "multiform.teach.record", "Mentor": "multiform.demos.episode",
     # the verbs
     "record": "multiform.api", "train": "multiform.api", "open_model": "multiform.api", "run_trial": "multiform.api",
     "practise": "multiform.api", "evaluate": "multiform.api", "mentor_rate": "multiform.api",

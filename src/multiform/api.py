@@ -38,7 +38,7 @@ def record(task: TaskLike, out: str | os.PathLike, demos: int | None = None, see
     Ray tasks at the cluster ``ray``); demo ``i`` starts from seed ``100000 * seed + i``. The
     file's folder is made if missing. Returns the path."""
     from .demos.dataset import write_dataset
-    from .demos.record import record_many
+    from .teach.record import record_many
     from .lock import check_writable, exclusive
     task = load_task(task)
     out = _new_output(out, overwrite, "file")
@@ -171,7 +171,7 @@ def mentor_rate(task: TaskLike, trials: int = 200, seed: int = 0, workers: int =
     :func:`evaluate` runs with the same ``trials`` and ``seed`` (their seeds and reset options; no
     experimenter's push), by the mentor's own verdict on each attempt, with its 95 % Wilson
     interval: the bar the robot's rate is read against."""
-    from .demos.record import record_many
+    from .teach.record import record_many
     from .stats import rate
     task = load_task(task)
     specs = task.evaluation_specs(trials, seed, 0.0)

@@ -239,7 +239,7 @@ def cmd_demos_info(args: argparse.Namespace) -> int:
     return 0
 
 
-# Tests set this to a teleop script (see multiform.demos.teleop) to drive `multiform teleop` headless.
+# Tests set this to a teleop script (see multiform.teach.teleop) to drive `multiform teleop` headless.
 _TELEOP_SCRIPT = None
 
 
@@ -284,7 +284,7 @@ def cmd_teleop(args: argparse.Namespace) -> int:
         pygame.joystick.quit()
         if not count:
             raise InvalidInput("no joystick found; use --keyboard", element="--joystick")
-    from .demos.teleop import TeleopAborted, teleop_pendulum
+    from .teach.teleop import TeleopAborted, teleop_pendulum
     seed = len(episodes) if args.seed is None else args.seed
     print("arrows / stick: move the hand   0-6 / buttons: mark the sub-procedure (t0-t6)   Esc: end; "
           "then s / f per segment", flush=True)
@@ -305,7 +305,7 @@ def cmd_teleop(args: argparse.Namespace) -> int:
 
 
 def cmd_label(args: argparse.Namespace) -> int:
-    from .demos.labelling import label_session
+    from .teach.labelling import label_session
     from .lock import exclusive
     from .model import SkillModel
     SkillModel(args.model).verify(to_run=False)

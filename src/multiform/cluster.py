@@ -222,7 +222,7 @@ class RayTrials:
 def demonstration(version: str, run: Callable[..., Any], task: str, env_kwargs: dict[str, Any],
                   mentor_kwargs: dict[str, Any], seed: int) -> Any:
     """One scripted-mentor demonstration on a Ray worker: ``run(task, env_kwargs, mentor_kwargs,
-    seed)`` (the recorder's :func:`~multiform.demos.record.demonstration_in_worker`; an Episode)."""
+    seed)`` (the recorder's :func:`~multiform.teach.record.demonstration_in_worker`; an Episode)."""
     _same_version(version)
     return run(task, env_kwargs, mentor_kwargs, seed)
 

@@ -27,7 +27,7 @@ from tqdm import tqdm
 from .evaluation import Evaluator, Variant
 from .demos.dataset import read_dataset, write_dataset
 from .demos.episode import Episode
-from .demos.record import demo_push, record_many
+from .teach.record import demo_push, record_many
 from .errors import InvalidInput
 from .io import write_json
 from .learn.labels import LabelStore

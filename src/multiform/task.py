@@ -126,12 +126,12 @@ class Task:
         ``seed`` keyword is told the seed too), ``act(obs, info, t)`` -> (command, transition),
         ``finished()``, ``label(episode)`` -> segment labels, and optionally ``outcome``
         (``"success"``/``"failure"``), its verdict on the whole attempt. ``kwargs`` come from
-        :func:`multiform.demos.record.record_many`'s ``mentor_kwargs``. Optionally ``grade_trial``:
+        :func:`multiform.teach.record.record_many`'s ``mentor_kwargs``. Optionally ``grade_trial``:
         its verdict on each stay of a practice trial (:meth:`mentor_grader`)."""
         raise InvalidInput(f"task {self.TASK} has no scripted mentor; record demonstrations yourself", element="task")
 
     def demo_push(self, seed: int) -> dict[str, Any] | None:
-        """The experimenter's push in demonstration ``seed`` (:class:`multiform.demos.record.PushDuring`
+        """The experimenter's push in demonstration ``seed`` (:class:`multiform.teach.record.PushDuring`
         arguments), or None: no push."""
         return None
 

@@ -12,7 +12,7 @@ from multiform.adapt.experience import Experience, select_segments
 from multiform.adapt.explore import ExploringLaw
 from multiform.adapt.practice import Practice, PracticeConfig, PracticeState, RevisionRecord, TrialRecord, Watch
 from multiform.demos.episode import Episode, SegmentLabel
-from multiform.demos.pendulum_mentor import PendulumMentor
+from multiform.tasks.pendulum_mentor import PendulumMentor
 from multiform.errors import InvalidInput
 from multiform.learn.gp import GPLaw
 from multiform.learn.judge import SegmentGrade, TrialGrade

@@ -130,7 +130,7 @@ def test_estimator_at_rest_reads_the_weight():
 
 def _swing_errors(seeds):
     """Angle errors of the estimate while the scripted mentor swings the nunchaku (before release)."""
-    from multiform.demos.nunchaku_mentor import NunchakuMentor
+    from multiform.tasks.nunchaku_mentor import NunchakuMentor
     env = NunchakuEnv()
     mentor = NunchakuMentor(failure_rate=0.0)
     errors = []
@@ -160,7 +160,7 @@ def test_free_rod_angle_from_load_is_accurate_during_the_swing():
 def _random_trials(n, duration=1.5, seed0=0):
     """Randomised nunchakus, alternately under random hand/wrist motion with magnet switching and
     under the scripted flip with doubled noise and frequent fumbles; counts divergences."""
-    from multiform.demos.nunchaku_mentor import NunchakuMentor
+    from multiform.tasks.nunchaku_mentor import NunchakuMentor
     env = NunchakuEnv(settle=0.0)
     mentor = NunchakuMentor(failure_rate=0.5, noise=2.0)
     diverged = 0

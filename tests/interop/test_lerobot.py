@@ -13,7 +13,7 @@ import pytest
 from multiform.cli import main
 from multiform.demos.dataset import read_dataset, write_dataset
 from multiform.demos.lerobot import read_lerobot
-from multiform.demos.record import record_many
+from multiform.teach.record import record_many
 from multiform.errors import InvalidInput
 from multiform.learn.training import LawSettings, fit_law
 from multiform.petri.skillfile import parse_skill

@@ -19,7 +19,7 @@ import robomimic
 import multiform.envs  # noqa: F401  (registers the envs)
 from multiform import api
 from multiform.demos.dataset import read_dataset, train_valid_split, write_dataset
-from multiform.demos.record import record_many
+from multiform.teach.record import record_many
 from multiform.task import load_task
 
 KEYS = ["theta", "omega", "x", "xdot"]

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from multiform.demos.record import record_many
+from multiform.teach.record import record_many
 from multiform.learn.condition import switch_windows, window_hits
 from multiform.learn.training import fit_switch_condition
 from multiform.learn.views import switch_data

@@ -7,12 +7,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from multiform.demos.record import record_many
+from multiform.teach.record import record_many
 from multiform.errors import InvalidInput
 from multiform.learn.labels import LabelStore
 from multiform.learn.training import (LawSettings, fit_judge, fit_law, fit_regions, mentor_records,
                                       own_stay_floors, region_floor)
-from multiform.demos.pendulum_mentor import BALANCE_GAINS
+from multiform.tasks.pendulum_mentor import BALANCE_GAINS
 from multiform.learn.views import MIRROR_SUFFIX, law_data, mirror_episode, stays, success_mask, value_matrix
 from multiform.petri.skillfile import load_skill
 from multiform.task import load_task

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import multiform.envs  # noqa: F401
-from multiform.demos.record import record_episode
+from multiform.teach.record import record_episode
 from multiform.envs.nunchaku import COMMAND_NAMES, OBSERVATION_NAMES
 from multiform.learn.training import LawSettings, fit_law
 from multiform.petri.firing import Firing

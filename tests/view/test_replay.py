@@ -10,8 +10,8 @@ pytest.importorskip("rerun")
 
 from multiform.cli import main  # noqa: E402
 from multiform.demos.dataset import read_dataset, write_dataset  # noqa: E402
-from multiform.demos.pendulum_mentor import PendulumMentor  # noqa: E402
-from multiform.demos.record import PushDuring, record_episode  # noqa: E402
+from multiform.tasks.pendulum_mentor import PendulumMentor  # noqa: E402
+from multiform.teach.record import PushDuring, record_episode  # noqa: E402
 from multiform.report.video import read_mp4  # noqa: E402
 from multiform.envs.arm_pendulum import ArmPendulumEnv  # noqa: E402
 from multiform.view.replay import labels, replay_demo  # noqa: E402

@@ -1,6 +1,6 @@
 """One demonstration or trial as arrays, and the protocol a mentor follows.
 
-The loop that records a mentor is in :mod:`multiform.demos.record`.
+The loop that records a mentor is in :mod:`multiform.teach.record`.
 
 An :class:`Episode` is what the dataset stores per ``demo_N``: the observations the robot's own
 sensors gave (named by the env's ``observation_names``), the mentor's end-effector commands, the

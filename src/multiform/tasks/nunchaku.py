@@ -50,7 +50,7 @@ class Nunchaku(Task):
 
     def make_mentor(self, **kwargs: Any):
         """The scripted mentor standing in for a person showing the flip (with fumbles)."""
-        from ..demos.nunchaku_mentor import NunchakuMentor
+        from .nunchaku_mentor import NunchakuMentor
         return NunchakuMentor(**kwargs)
 
     def demo_options(self, seed: int) -> dict[str, Any]:
@@ -114,7 +114,7 @@ class Nunchaku(Task):
 def flip_events(trace: Trace) -> dict[str, Any]:
     """What the experimenter saw: first release, back touch, the final catch and how long it held,
     and which rod ends in the palm (the env's ``info["scene"]`` at the end of the trial)."""
-    from ..demos.nunchaku_mentor import release_touch_catch
+    from .nunchaku_mentor import release_touch_catch
     grip = trace.value("grip") > 0.5
     scene = trace.final_info.get("scene") or {}
     out: dict[str, Any] = {"held": scene.get("held", ""), "release": None, "touch": None, "catch": None,

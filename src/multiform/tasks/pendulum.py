@@ -52,7 +52,7 @@ class Pendulum(Task):
 
     def make_mentor(self, **kwargs: Any):
         """The scripted mentor standing in for a person with a joystick."""
-        from ..demos.pendulum_mentor import PendulumMentor
+        from .pendulum_mentor import PendulumMentor
         return PendulumMentor(**kwargs)
 
     def demo_options(self, seed: int) -> dict[str, Any]:
@@ -116,7 +116,7 @@ class Pendulum(Task):
         pendulum's state and the hand's position at that tick (the arm at rest), for at most 20 s."""
         import gymnasium as gym
 
-        from ..demos.record import record_episode
+        from ..teach.record import record_episode
         env = gym.make(self.ENV_ID, **self.DEMO_ENV_KWARGS)
         limit = env.unwrapped.x_limit - 0.01
 

@@ -50,8 +50,8 @@ from ..learn.views import stays, value_matrix
 from ..model import SkillModel
 from ..petri.net import APN
 from ..runtime.trace import Trace
-from .dataset import read_dataset
-from .episode import Episode
+from ..demos.dataset import read_dataset
+from ..demos.episode import Episode
 
 KEYS = {"s": "success", "f": "failure", "k": "skip", "q": "quit"}
 KEY_HELP = "s success, f failure, k skip, q quit"

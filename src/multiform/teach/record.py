@@ -13,7 +13,7 @@ import numpy as np
 from ..errors import InvalidInput
 from ..parallel import WorkerState, mp_context, ray_backend, task_key
 from ..runtime.contract import env_contract
-from .episode import Episode, Mentor
+from ..demos.episode import Episode, Mentor
 
 
 @dataclass

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from multiform.demos.episode import Episode
-from multiform.demos.pendulum_mentor import PendulumMentor
-from multiform.demos.record import PushDuring, record_episode
+from multiform.tasks.pendulum_mentor import PendulumMentor
+from multiform.teach.record import PushDuring, record_episode
 from multiform.envs.arm_pendulum import ArmPendulumEnv
 from multiform.envs.osc import OBSERVATION_NAMES
 from multiform.report.video import episode_video, read_mp4, replay

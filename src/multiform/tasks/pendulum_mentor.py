@@ -62,7 +62,7 @@ import numpy as np
 
 from ..angles import wrap_angle
 from ..envs.arm_pendulum import NOMINAL, equivalent_length
-from .episode import Episode, SegmentLabel
+from ..demos.episode import Episode, SegmentLabel
 
 G = 9.81
 BALANCE_GAINS = (4.385, 0.8646, 0.9542, 1.882)   # v = K . (theta, omega, x, xdot)

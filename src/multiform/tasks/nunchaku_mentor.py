@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from .episode import Episode, SegmentLabel
+from ..demos.episode import Episode, SegmentLabel
 
 _OMEGA2 = 34.5        # small-oscillation frequency squared of the free part [1/s^2], for the energy
 

@@ -12,8 +12,8 @@ import pytest
 import multiform.envs  # noqa: F401  (registers the envs)
 from multiform.cli import EXIT_MISSING, main
 from multiform.demos.dataset import write_dataset
-from multiform.demos.labelling import read_sources, segments_to_label
-from multiform.demos.record import record_many
+from multiform.teach.labelling import read_sources, segments_to_label
+from multiform.teach.record import record_many
 from multiform.learn.labels import LabelStore
 from multiform.learn.training import fit_judge, mentor_records
 from multiform.learn.views import MIRROR_SUFFIX

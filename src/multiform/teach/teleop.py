@@ -35,7 +35,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
-from .episode import Episode, SegmentLabel
+from ..demos.episode import Episode, SegmentLabel
 
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 

@@ -11,7 +11,7 @@ import numpy as np  # noqa: E402
 import pygame  # noqa: E402
 import pytest  # noqa: E402
 
-from multiform.demos.teleop import TeleopAborted, teleop, teleop_pendulum  # noqa: E402
+from multiform.teach.teleop import TeleopAborted, teleop, teleop_pendulum  # noqa: E402
 from multiform.envs.arm_pendulum import ArmPendulumEnv  # noqa: E402
 
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from multiform.demos.nunchaku_mentor import FlipParameters, NunchakuMentor
-from multiform.demos.record import record_episode
+from multiform.tasks.nunchaku_mentor import FlipParameters, NunchakuMentor
+from multiform.teach.record import record_episode
 from multiform.envs.nunchaku import NunchakuEnv
 from multiform.petri.skillfile import load_skill
 
