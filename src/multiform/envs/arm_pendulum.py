@@ -77,13 +77,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from importlib import resources
 from typing import Any
 
 import gymnasium as gym
 import mujoco
 import numpy as np
 
+from .arm_model import load_model
 from .osc import DEFAULT_GAINS, OBSERVATION_NAMES, TORQUE_LIMITS, Gains, Workspace, task_acceleration_list, torques_for
 from .rendering import check_frame_skip, make_renderer, skip_frames
 
@@ -104,22 +104,8 @@ _THETA, _OMEGA, _X, _EY, _EZ, _RX, _RY, _RZ = (OBSERVATION_NAMES.index(n) for n 
 _OPTIONS = ("length", "mass", "damping", "randomize", "theta0", "omega0", "x0", "disturbances")
 
 
-def model_path() -> str:
-    """Path of the bundled MJCF model."""
-    return str(resources.files("multiform") / "envs" / "assets" / "arm_pendulum.xml")
-
-
 # the largest pendulum the arm's simulation is meant for (the nominal one is 0.4 m, 0.1 kg, 2e-4 N m s/rad)
 MAX_PARAMS = {"length": 2.0, "mass": 10.0, "damping": 10.0}
-
-
-def load_model() -> mujoco.MjModel:
-    """A fresh copy of the arm-pendulum model. MuJoCo's automatic reset on bad values is off: a
-    non-finite state stays visible (and ends the step as ``non_finite``) instead of silently
-    teleporting the arm home."""
-    m = mujoco.MjModel.from_xml_path(model_path())
-    m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
-    return m
 
 
 def pendulum_inertia(length: float, mass: float) -> tuple[float, float, float]:

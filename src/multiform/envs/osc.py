@@ -182,7 +182,7 @@ class ReferenceController:
 
     def __init__(self, model: mujoco.MjModel | None = None, gains: Gains = DEFAULT_GAINS):
         if model is None:
-            from .arm_pendulum import load_model
+            from .arm_model import load_model
             model = load_model()
         self.model = model
         self.data = mujoco.MjData(model)
