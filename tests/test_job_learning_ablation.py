@@ -79,7 +79,7 @@ def test_the_main_job_takes_its_size_and_learning_from_the_task(tmp_path, task, 
     assert (told.cfg.demos, told.cfg.learn) == (3, not learn)
 
 
-@pytest.mark.parametrize("flags, learn", [([], None), (["--learn-from-practice"], True),
+@pytest.mark.parametrize("flags, learn", [([], True), (["--learn-from-practice"], True),
                                           (["--no-learn-from-practice"], False)])
 def test_demo_learns_from_practice_as_the_task_says_unless_told(flags, learn):
     from multiform.cli import build_parser

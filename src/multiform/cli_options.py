@@ -93,7 +93,7 @@ def _add_view(p: argparse.ArgumentParser, what: str) -> None:
 # The main job's sizes, as JobConfig has them (a test checks that the two agree; importing the job
 # here would make every --help load the learners).
 JOB_DEFAULTS = {"eval_trials": 200, "ablation_trials": 50, "practice_max_trials": 30, "practice_budget": 100,
-                "workers": 2, "seed": 0}
+                "workers": 2, "seed": 0, "learn": True}
 
 
 class _HelpFormatter(argparse.HelpFormatter):
@@ -106,6 +106,8 @@ class _HelpFormatter(argparse.HelpFormatter):
             return text
         if isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction)):
             return f"{text} (default: off)" if action.default is False else f"{text} (default: on)"
+        if isinstance(action, argparse.BooleanOptionalAction) and isinstance(action.default, bool):
+            return f"{text} (default: {'on' if action.default else 'off'})"
         if action.default is None or isinstance(action, argparse.BooleanOptionalAction):
             return text
         return f"{text} (default: %(default)s)"
@@ -369,10 +371,10 @@ def _add_run_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
     p.add_argument("--seed", type=_count(0, 40_000), default=JOB_DEFAULTS["seed"],
                    help="the job's seed: its demonstrations, practice and evaluation trials")
     p.add_argument("--no-video", action="store_true", help="write no videos")
-    p.add_argument("--learn-from-practice", action=argparse.BooleanOptionalAction, default=None,
-                   help="after the repair scenarios, keep practising as evaluated and learn from it: refit the laws "
-                        "from the robot's own graded successes and the mentor's takeovers, revise the judges with "
-                        "the mentor's grades of some trials (default: the task's LEARN: on for both bundled tasks)")
+    p.add_argument("--learn-from-practice", action=argparse.BooleanOptionalAction, default=JOB_DEFAULTS["learn"],
+                   help="run the task's scenarios that learn from practice: refit the laws from the robot's own "
+                        "graded successes and the mentor's takeovers, revise the judges with the mentor's grades "
+                        "of some trials; --no-learn-from-practice: practice only repairs the net")
     p.add_argument("--practice-budget", type=_count(0, 100_000), default=JOB_DEFAULTS["practice_budget"],
                    help="practice trials of all scenarios together at most")
     p.add_argument("--reference-controller", action="store_true",
