@@ -374,7 +374,7 @@ def _add_run_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
     p.add_argument("--learn-from-practice", action=argparse.BooleanOptionalAction, default=JOB_DEFAULTS["learn"],
                    help="run the task's scenarios that learn from practice: refit the laws from the robot's own "
                         "graded successes and the mentor's takeovers, revise the judges with the mentor's grades "
-                        "of some trials; --no-learn-from-practice: practice only repairs the net")
+                        "of some trials; off: practice only repairs the net")
     p.add_argument("--practice-budget", type=_count(0, 100_000), default=JOB_DEFAULTS["practice_budget"],
                    help="practice trials of all scenarios together at most")
     p.add_argument("--reference-controller", action="store_true",
