@@ -16,7 +16,8 @@ from pathlib import Path
 import pytest
 
 from multiform.evaluation import Evaluator, Variant, evaluate
-from multiform.job import Job, JobConfig, train_model
+from multiform.job import Job, JobConfig
+from multiform.trainer import train_model
 from multiform.model import SkillModel
 from multiform.report.browser import chromium, render
 

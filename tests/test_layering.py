@@ -20,7 +20,7 @@ LAYERS = [
     ("demos",),
     ("learn",),
     ("runtime",),
-    ("model",),
+    ("model", "trainer"),
     ("adapt",),
     ("task",),
     ("parallel", "cluster"),

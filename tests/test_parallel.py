@@ -56,7 +56,7 @@ def test_env_modules_the_caller_allowed_travel_to_spawned_workers(tmp_path, monk
     from multiform.evaluation import Variant, evaluate
     from multiform.demos.dataset import write_dataset
     from multiform.teach.record import record_many
-    from multiform.job import train_model
+    from multiform.trainer import train_model
     from multiform.model import SkillModel
     from multiform.task import load_task
 

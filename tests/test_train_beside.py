@@ -10,13 +10,13 @@ from types import SimpleNamespace
 
 import pytest
 
-import multiform.job as job
+import multiform.trainer as trainer
 
 
 @pytest.fixture(autouse=True)
 def _plain_model(monkeypatch):
     # the child opens the model directory itself; a namespace with its path stands in for it here
-    monkeypatch.setattr(job, "SkillModel", lambda path: SimpleNamespace(path=Path(path)))
+    monkeypatch.setattr(trainer, "SkillModel", lambda path: SimpleNamespace(path=Path(path)))
 
 
 def _waits_for_laws(model, seed, log, laws_ready):
@@ -33,7 +33,7 @@ def _fails(model, seed, log, laws_ready):
 
 
 def test_trainer_waits_for_the_laws_and_its_log_comes_back(tmp_path):
-    beside = job._Beside(_waits_for_laws, SimpleNamespace(path=tmp_path), seed=7)
+    beside = trainer._Beside(_waits_for_laws, SimpleNamespace(path=tmp_path), seed=7)
     try:
         time.sleep(0.3)
         assert beside._proc.is_alive() and not (tmp_path / "exercised").exists()
@@ -48,7 +48,7 @@ def test_trainer_waits_for_the_laws_and_its_log_comes_back(tmp_path):
 
 
 def test_a_failing_trainer_raises_here_with_its_reason(tmp_path):
-    beside = job._Beside(_fails, SimpleNamespace(path=tmp_path), seed=0)
+    beside = trainer._Beside(_fails, SimpleNamespace(path=tmp_path), seed=0)
     lines: list[str] = []
     try:
         with pytest.raises(RuntimeError, match="no pendulum mounted"):
@@ -59,7 +59,7 @@ def test_a_failing_trainer_raises_here_with_its_reason(tmp_path):
 
 
 def test_a_failure_here_ends_the_waiting_trainer(tmp_path):
-    beside = job._Beside(_waits_for_laws, SimpleNamespace(path=tmp_path), seed=0)
+    beside = trainer._Beside(_waits_for_laws, SimpleNamespace(path=tmp_path), seed=0)
     time.sleep(0.2)
     t0 = time.perf_counter()
     beside.close()                     # as train_model's finally does when a law fit raised

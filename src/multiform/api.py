@@ -61,7 +61,7 @@ def train(skill: str | os.PathLike, demos: str | os.PathLike, out: str | os.Path
     the demos). The skill file's ``env:`` must be the demos' env. Returns the
     :class:`~multiform.model.SkillModel`."""
     from .demos.dataset import read_dataset
-    from .job import train_model
+    from .trainer import train_model
     from .model import SkillModel, staged_model_dir
     from .petri.skillfile import load_skill
     from .task import task_for_env
