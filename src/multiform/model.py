@@ -157,7 +157,7 @@ class SkillModel:
         listed: dict[str, dict[str, Any]] = m["artifacts"]
         out: list[Problem] = []
         for rel, info in listed.items():
-            out += self._check_artifact(rel, info)
+            out += _check_artifact(self.path, rel, info)
         for folder in ARTIFACT_FOLDERS:
             for p in sorted((self.path / folder).glob("*.npz")):
                 rel = p.relative_to(self.path).as_posix()
@@ -177,7 +177,7 @@ class SkillModel:
             if t.condition.is_learned and f"conditions/{t.condition.model}.npz" not in listed:
                 out.append(Problem(str(self.path / "conditions" / f"{t.condition.model}.npz"),
                                    f"transitions.{t.id}.condition", "the learned condition is missing"))
-        if self.needs_inverse_model(m) and "inverse_model.npz" not in listed:
+        if needs_inverse_model(m) and "inverse_model.npz" not in listed:
             out.append(Problem(str(self.path / "inverse_model.npz"), "",
                                f"missing: the env takes joint torques (env_kwargs {m['env_kwargs']}), and without "
                                f"the inverse model nothing turns the skill's commands into torques"))
@@ -186,29 +186,6 @@ class SkillModel:
         except InvalidInput as exc:
             out += exc.problems
         return out
-
-    def _check_artifact(self, rel: str, info: Any) -> list[Problem]:
-        where = str(self.path / "model.json")
-        if not isinstance(info, dict) or not isinstance(info.get("sha256"), str) or "kind" not in info:
-            return [Problem(where, f"artifacts.{rel}", "must be an object with kind and sha256")]
-        parts = Path(rel).parts
-        ok_place = (rel == "skill.yaml" or rel in ARTIFACT_FILES
-                    or (len(parts) == 2 and ARTIFACT_FOLDERS.get(parts[0]) == info["kind"] and rel.endswith(".npz")))
-        if not ok_place or ".." in parts or Path(rel).is_absolute():
-            return [Problem(where, f"artifacts.{rel}", "not a place for a model artifact")]
-        path = self.path / rel
-        if not path.is_file():
-            return [Problem(str(path), "", f"missing (model.json lists this {info['kind']})")]
-        if _sha256(path) != info["sha256"]:
-            return [Problem(str(path), "", "changed since multiform wrote it (SHA-256 differs from model.json)")]
-        if rel == "skill.yaml":
-            return []
-        try:
-            _load_artifact(path, info["kind"])
-        except InvalidInput as exc:
-            return list(exc.problems)
-        bad = _non_finite_arrays(path)
-        return [Problem(str(path), f"array {a!r}", "has non-finite values") for a in bad]
 
     def verify(self, to_run: bool = True) -> None:
         """Raise :class:`InvalidInput` listing every problem (see :meth:`problems`); a model that
@@ -227,11 +204,6 @@ class SkillModel:
             self._verified_to_run = key
         else:
             self._verified = key
-
-    @staticmethod
-    def needs_inverse_model(manifest: Mapping[str, Any]) -> bool:
-        """Whether the env takes joint torques, so the skill's commands need the inverse model."""
-        return manifest.get("env_kwargs", {}).get("action_mode") == "torque"
 
     def _env_id(self, m: Mapping[str, Any]) -> str:
         import multiform.envs  # noqa: F401  (registers the envs)
@@ -362,7 +334,7 @@ class SkillModel:
         self.verify()
         apn = apn or self.apn
         inverse = self.inverse_model() if use_inverse_model else None
-        if inverse is None and self.needs_inverse_model(self.manifest) and \
+        if inverse is None and needs_inverse_model(self.manifest) and \
                 tuple(env.action_space.shape) != (len(env.get_wrapper_attr("command_names")),):
             raise InvalidInput("the env takes joint torques; a run without the inverse model needs the env in "
                                "command mode", file=str(self.path / "model.json"), element="env_kwargs")
@@ -415,6 +387,36 @@ def staged_model_dir(final: str | os.PathLike, keep_on_error: bool = False) -> I
 
 
 IDENT_FILE = re.compile(r"[A-Za-z_][A-Za-z0-9_\-]*")
+
+
+def needs_inverse_model(manifest: Mapping[str, Any]) -> bool:
+    """Whether the env takes joint torques, so the skill's commands need the inverse model."""
+    return manifest.get("env_kwargs", {}).get("action_mode") == "torque"
+
+
+def _check_artifact(root: Path, rel: str, info: Any) -> list[Problem]:
+    """What is wrong with one artifact ``model.json`` lists under ``root`` (none: it is sound)."""
+    where = str(root / "model.json")
+    if not isinstance(info, dict) or not isinstance(info.get("sha256"), str) or "kind" not in info:
+        return [Problem(where, f"artifacts.{rel}", "must be an object with kind and sha256")]
+    parts = Path(rel).parts
+    ok_place = (rel == "skill.yaml" or rel in ARTIFACT_FILES
+                or (len(parts) == 2 and ARTIFACT_FOLDERS.get(parts[0]) == info["kind"] and rel.endswith(".npz")))
+    if not ok_place or ".." in parts or Path(rel).is_absolute():
+        return [Problem(where, f"artifacts.{rel}", "not a place for a model artifact")]
+    path = root / rel
+    if not path.is_file():
+        return [Problem(str(path), "", f"missing (model.json lists this {info['kind']})")]
+    if _sha256(path) != info["sha256"]:
+        return [Problem(str(path), "", "changed since multiform wrote it (SHA-256 differs from model.json)")]
+    if rel == "skill.yaml":
+        return []
+    try:
+        _load_artifact(path, info["kind"])
+    except InvalidInput as exc:
+        return list(exc.problems)
+    bad = _non_finite_arrays(path)
+    return [Problem(str(path), f"array {a!r}", "has non-finite values") for a in bad]
 
 
 def _sha256(path: Path) -> str:

@@ -38,7 +38,6 @@ def test_task_interface():
         assert sc.perturb is None and sc.options(3) == {"randomize": True}
     repair, learn = task.scenarios()
     assert not repair.learn and learn.learn and learn.mentor is not None and learn.takeover is None
-    assert 0.5 < task.TARGET_SUCCESS_RATE <= 1.0
 
 
 def _trace(grip, touch, held: str, outcome: str = "success", dt: float = 0.001) -> Trace:
