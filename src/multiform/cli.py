@@ -99,7 +99,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     from .petri.analysis import analyse, report
     from .petri.skillfile import load_skill
     apn = load_skill(args.skill)
-    result = analyse(apn, max_states=args.max_states)
+    result = analyse(apn, max_states=args.max_states, max_seconds=args.max_seconds)
     for line in report(apn, result):
         print(line)
     if not result.ok:
@@ -549,6 +549,8 @@ def _add_net_commands(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("check", help="validate a skill file and analyse its net (exit 0 ok, 2 problems)")
     p.add_argument("skill", help="skill file or bundled skill name")
     p.add_argument("--max-states", type=_count(1, 10_000_000), default=10_000, help="cap on the reachability graph")
+    p.add_argument("--max-seconds", type=_number(0.0, 3600.0, low_open=True), default=5.0,
+                   help="time budget of the analysis (its memory is bounded too); an unfinished graph fails the check")
     p.set_defaults(func=cmd_check)
 
     p = sub.add_parser("draw", help="draw a skill's net (SVG/PNG by suffix)")

@@ -29,6 +29,7 @@ import hashlib
 import os
 import re
 import shutil
+import tempfile
 from collections.abc import Iterator, Mapping, Sequence
 from functools import cached_property
 from pathlib import Path
@@ -383,27 +384,40 @@ class SkillModel:
 
 @contextlib.contextmanager
 def staged_model_dir(final: str | os.PathLike, keep_on_error: bool = False) -> Iterator[Path]:
-    """Build a model directory in a hidden sibling (``.NAME.partial``, locked) and move it to
-    ``final`` only when the block ends without error, so a failed or killed training never leaves
-    a half-made model where a model is expected. ``keep_on_error`` keeps the partial folder for a
-    resumed run to continue (the main job); otherwise it is removed."""
+    """Build a model directory in a hidden sibling and move it to ``final`` only when the block ends
+    without error, so a failed or killed training never leaves a half-made model where a model is
+    expected.
+
+    The lock of ``final`` is held throughout: a second training into the same directory is refused
+    before it makes or removes anything. The staging folder belongs to this call: it has a name of
+    its own (``.NAME.partial-<random>``), and this call alone removes it (on error). A folder left by
+    a killed training is never reused, named or removed by another one. With ``keep_on_error`` (the
+    main job, whose run folder is its own and locked) the folder is ``.NAME.partial``, kept on error,
+    and resumed by the next run of the same job."""
     final = Path(final)
-    if final.exists():
-        raise InvalidInput("exists already; train into a new directory", file=str(final))
-    partial = final.with_name(f".{final.name}.partial")
-    try:
-        partial.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InvalidInput(f"cannot create the model directory here ({exc.strerror})", file=str(final)) from None
-    done = False
-    try:
-        with exclusive(partial):
+    with exclusive(final):
+        if final.exists():
+            raise InvalidInput("exists already; train into a new directory", file=str(final))
+        try:
+            final.parent.mkdir(parents=True, exist_ok=True)
+            if keep_on_error:
+                partial = final.with_name(f".{final.name}.partial")
+                partial.mkdir(exist_ok=True)
+            else:
+                partial = Path(tempfile.mkdtemp(prefix=f".{final.name}.partial-", dir=final.parent))
+                umask = os.umask(0)
+                os.umask(umask)
+                os.chmod(partial, 0o777 & ~umask)       # a model directory gets the usual mode
+        except OSError as exc:
+            raise InvalidInput(f"cannot create the model directory here ({exc.strerror})", file=str(final)) from None
+        done = False
+        try:
             yield partial
             os.rename(partial, final)
             done = True
-    finally:
-        if not done and not keep_on_error:
-            shutil.rmtree(partial, ignore_errors=True)
+        finally:
+            if not done and not keep_on_error:
+                shutil.rmtree(partial, ignore_errors=True)
 
 
 IDENT_FILE = re.compile(r"[A-Za-z_][A-Za-z0-9_\-]*")

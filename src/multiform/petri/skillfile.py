@@ -18,6 +18,7 @@ from typing import Any
 import yaml
 
 from ..errors import InvalidInput, Problem
+from ..io import read_bytes
 from .guard import GuardError, parse_guard
 from .net import APN, FINAL_KINDS, Condition, Law, Place, Transition, condition_names, is_clock
 
@@ -29,11 +30,15 @@ PLACE_KEYS = {"label", "final", "judge"}
 TRANSITION_KEYS = {"label", "in", "out", "law", "lambda", "condition"}
 LAW_KEYS = {"inputs", "outputs", "mean", "lag", "description", "fit"}
 MAX_LAG = 1.0                    # s: a reaction time, not a plan
+MAX_TICKS = 1_000_000            # control ticks of one trial (max_duration × control_rate): its trace is kept in memory
+MAX_CONTROL_RATE = 100_000.0     # Hz
+MAX_FILE_BYTES = 16 << 20        # a skill file (a 10,000-place net is about 1 MB)
+MAX_NODES = 2_000_000            # YAML nodes with every alias expanded (an "alias bomb" expands to billions)
 MAX_COUNT = 2**31 - 1            # tokens in a place, weight of an arc (int32, as other PNML tools hold them)
 LAW_MEANS = ("constant", "linear")
 
 
-class _UniqueKeyLoader(yaml.SafeLoader):
+class _UniqueKeyLoader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):     # libyaml's parser: 5x faster
     """A safe loader that records duplicate mapping keys instead of silently keeping the last."""
 
     duplicates: list[tuple[str, int]]
@@ -84,27 +89,36 @@ def resolve_skill(name_or_path: str | os.PathLike) -> Path:
 def load_skill(path: str | os.PathLike) -> APN:
     """Read and validate a skill file (a path or a bundled skill name)."""
     path = resolve_skill(path)
+    data = read_bytes(path, "skill file", limit=MAX_FILE_BYTES)
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InvalidInput("file not found", file=str(path)) from None
-    except (OSError, UnicodeDecodeError) as exc:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
         raise InvalidInput(f"cannot read ({exc})", file=str(path)) from None
     return parse_skill(text, str(path))
 
 
 def parse_skill(text: str, file: str = "<string>") -> APN:
     """Parse skill YAML text; raises :class:`InvalidInput` listing every problem."""
+    if len(text) > MAX_FILE_BYTES:
+        raise InvalidInput(f"{len(text)} characters; a skill file is at most {MAX_FILE_BYTES}", file=file)
     loader = _UniqueKeyLoader(text)
     loader.duplicates = []
     try:
-        data = loader.get_single_data()
+        node = loader.get_single_node()
+        if node is not None and "&" in text:          # aliases need an anchor
+            _check_expanded_size(node, file)
+        data = loader.construct_document(node) if node is not None else None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}" if mark is not None else ""
-        raise InvalidInput(f"not valid YAML ({getattr(exc, 'problem', exc)})", file=file, element=where) from None
+        problem = str(getattr(exc, "problem", exc))
+        if "nesting depth" in problem:       # libyaml's own bound
+            raise InvalidInput("not a skill file: lists or mappings nested too deeply", file=file, element=where) from None
+        raise InvalidInput(f"not valid YAML ({problem})", file=file, element=where) from None
     except RecursionError:
         raise InvalidInput("not a skill file: lists or mappings nested too deeply", file=file) from None
+    except InvalidInput:
+        raise
     except ValueError as exc:       # a number with more digits than Python converts
         raise InvalidInput(f"not a skill file: {exc}", file=file) from None
     finally:
@@ -118,6 +132,34 @@ def parse_skill(text: str, file: str = "<string>") -> APN:
         raise InvalidInput(problems)
     assert apn is not None
     return apn
+
+
+def _check_expanded_size(root: yaml.Node, file: str) -> None:
+    """Refuse a document whose nodes, every alias expanded, number more than :data:`MAX_NODES`, or
+    that holds itself: anchors and aliases let a few lines stand for billions of nodes (or for an
+    endless one), which no reader can hold."""
+    size: dict[int, int] = {}
+    open_: set[int] = set()
+    stack: list[tuple[yaml.Node, bool]] = [(root, False)]
+    while stack:
+        node, children_done = stack.pop()
+        kids = ([n for pair in node.value for n in pair] if isinstance(node, yaml.MappingNode)
+                else list(node.value) if isinstance(node, yaml.SequenceNode) else [])
+        if children_done:
+            open_.discard(id(node))
+            size[id(node)] = 1 + sum(size[id(k)] for k in kids)
+            if size[id(node)] > MAX_NODES:
+                raise InvalidInput(f"expands to more than {MAX_NODES:,} YAML nodes (through anchors and aliases); "
+                                   "not a skill file", file=file, element=f"line {node.start_mark.line + 1}")
+            continue
+        if id(node) in size:
+            continue
+        if id(node) in open_:
+            raise InvalidInput("an alias refers to the list or mapping that holds it; not a skill file", file=file,
+                               element=f"line {node.start_mark.line + 1}")
+        open_.add(id(node))
+        stack.append((node, True))
+        stack.extend((k, False) for k in kids if id(k) not in size)
 
 
 def skill_from_data(data: Mapping[str, Any], file: str = "<data>") -> APN:
@@ -145,6 +187,11 @@ def build_apn(data: Mapping[str, Any], file: str, problems: list[Problem]) -> AP
         name = "unnamed"
     control_rate = _positive(data.get("control_rate", 1000.0), "control_rate", bad)
     max_duration = _positive(data.get("max_duration", 60.0), "max_duration", bad)
+    if control_rate > MAX_CONTROL_RATE:
+        bad("control_rate", f"{control_rate:g} Hz is out of range (at most {MAX_CONTROL_RATE:g})")
+    elif max_duration * control_rate > MAX_TICKS:
+        bad("max_duration", f"{max_duration:g} s at {control_rate:g} Hz is {max_duration * control_rate:.3g} control "
+                            f"ticks per trial; at most {MAX_TICKS:,} (a trial's record is kept in memory)")
 
     variables = _variables(data.get("variables", {}), bad)
     commands = _name_list(data.get("commands", []), "commands", bad)
@@ -515,8 +562,9 @@ def parse_transitions(raw: Mapping[str, Any], place_ids: set[str], transition_id
                 law = None
             elif laws and law not in laws:
                 bad(f"{el}.law", f"unknown law {law!r} (laws: {', '.join(laws)})")
-        cond = parse_condition(spec.get("condition", "true"), f"{el}.condition", allowed, bad,
-                               transition_ids - {tid})
+        raw_cond = spec.get("condition", "true")
+        cond = parse_condition(raw_cond, f"{el}.condition", allowed, bad,
+                               transition_ids - {tid} if isinstance(raw_cond, Mapping) else frozenset())
         out.append(Transition(id=tid, inputs=inputs, outputs=outputs, law=law, lam=float(lam),
                               condition=cond, label=str(spec.get("label", "") or "")))
     return out
@@ -587,17 +635,28 @@ def _extra_arcs(raw: Any, transitions: list[Transition], place_ids: set[str], ba
 
 
 def _check_final_reachable(apn: APN, bad) -> None:
-    """Structural check: some final place must be reachable from the initially marked places."""
-    reached = set(apn.initial_marking)
-    changed = True
-    while changed:
-        changed = False
-        for t in apn.transitions:
-            if t.inputs and all(p in reached for p in t.inputs) or not t.inputs:
-                new = set(t.outputs) - reached
-                if new:
-                    reached |= new
-                    changed = True
+    """Structural check: some final place must be reachable from the initially marked places (a
+    worklist over the transitions, linear in the net's size)."""
+    missing = {t.id: len(set(t.inputs)) for t in apn.transitions}
+    waiting: dict[str, list[Transition]] = {}
+    for t in apn.transitions:
+        for p in set(t.inputs):
+            waiting.setdefault(p, []).append(t)
+    ready = [t for t in apn.transitions if not t.inputs]
+    reached: set[str] = set()
+    todo = list(apn.initial_marking)
+    while todo or ready:
+        while ready:
+            todo.extend(p for p in ready.pop().outputs if p not in reached)
+        if todo:
+            p = todo.pop()
+            if p in reached:
+                continue
+            reached.add(p)
+            for t in waiting.get(p, ()):
+                missing[t.id] -= 1
+                if missing[t.id] == 0:
+                    ready.append(t)
     if not any(p in reached for p in apn.final_places):
         bad("places", "no final place is reachable from the initial marking")
 
