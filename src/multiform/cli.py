@@ -34,13 +34,19 @@ EXIT_BROKEN_PIPE = 141         # as a shell reports a process ended by SIGPIPE
 MAX_SEED = 2**31 - 1
 
 
+def _line(text: object) -> str:
+    """``text`` on one line: control characters (a newline or an escape sequence in a file name)
+    shown escaped, so nothing in the input can forge another line or recolour the terminal."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+
+
 def _print_problems(exc: InvalidInput) -> None:
     """The first problem on the error line; a file with several problems lists the rest below."""
     first, *rest = exc.problems or [str(exc)]
     more = f" (and {len(rest)} more problem(s), below)" if rest else ""
-    print(f"multiform: error: {first}{more}", file=sys.stderr)
+    print(f"multiform: error: {_line(first)}{more}", file=sys.stderr)
     for p in rest:
-        print(f"  {p}", file=sys.stderr)
+        print(f"  {_line(p)}", file=sys.stderr)
 
 
 def _count(low: int, high: int):
@@ -512,9 +518,13 @@ def cmd_report(args: argparse.Namespace) -> int:
         try:
             if args.redraw or args.view:
                 from .report.artifacts import rebuild
-                out = rebuild(args.run, view=args.view)
+                from .task import installed_task, load_task
+                task = load_task(args.task) if args.task else installed_task(metrics.get("task"), str(path))
+                out = rebuild(args.run, task, view=args.view)
             else:
                 out = build_report(args.run, metrics)
+        except InvalidInput:
+            raise
         except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
             raise InvalidInput(f"malformed ({type(exc).__name__}: {exc})", file=str(path)) from None
     print(f"wrote {out}")
@@ -761,6 +771,9 @@ def _add_output_commands(sub: argparse._SubParsersAction) -> None:
                    help="also redraw the plots, nets and videos (reruns the two picked trials from their seeds)")
     p.add_argument("--view", action="store_true",
                    help="also save the picked trials as rerun recordings (RUN/view/*.rrd); implies --redraw")
+    p.add_argument("--task", default=None,
+                   help="the task that reruns the picked trials (default: the run's, if it is a bundled or installed "
+                        "task; a run folder never makes multiform import code)")
     p.set_defaults(func=cmd_report)
 
 
@@ -773,7 +786,7 @@ class _Parser(argparse.ArgumentParser):
     """argparse with a one-line error (the argument and what is wrong), exit status 2."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {_line(message)} (see {self.prog} --help)\n")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -796,7 +809,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.debug:
             raise
         where = f"{exc.filename}: " if exc.filename else ""
-        print(f"multiform: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        print(f"multiform: error: {_line(where)}{_line(exc.strerror or exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except RecursionError:
         if args.debug:
@@ -806,8 +819,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as exc:             # a bug of ours: one line, the traceback on request
         if args.debug:
             raise
-        print(f"multiform: internal error: {type(exc).__name__}: {exc} (run again with --debug for the traceback)",
-              file=sys.stderr)
+        print(f"multiform: internal error: {type(exc).__name__}: {_line(exc)} (run again with --debug for the "
+              "traceback)", file=sys.stderr)
         return 1
 
 

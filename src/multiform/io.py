@@ -42,11 +42,14 @@ def _naming(exc: OSError, tmp: Path | None, path: Path) -> OSError:
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str = "") -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; on success it replaces ``path``, on error it vanishes.
+    """Yield a temporary path beside ``path``; on success it replaces ``path``, on error it vanishes
+    with the folders made for it.
 
     An :class:`OSError` (a full disk, a quota) names ``path``, the file the caller asked for."""
     path = Path(path)
     tmp_path: Path | None = None
+    made = [d for d in (path.parent, *path.parent.parents) if not d.exists()]     # folders this write makes
+    done = False
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or ".tmp", dir=path.parent)
@@ -57,6 +60,7 @@ def atomic_path(path: str | os.PathLike, suffix: str = "") -> Iterator[Path]:
         os.chmod(tmp, 0o666 & ~umask)          # mkstemp makes 0600; a saved artifact gets the usual mode
         yield tmp_path
         os.replace(tmp_path, path)
+        done = True
     except OSError as exc:
         new = _naming(exc, tmp_path, path)
         if new is exc:
@@ -65,6 +69,10 @@ def atomic_path(path: str | os.PathLike, suffix: str = "") -> Iterator[Path]:
     finally:
         if tmp_path is not None and tmp_path.exists():
             tmp_path.unlink()
+        if not done:                 # a failed write leaves no folder it made behind
+            for d in made:
+                with contextlib.suppress(OSError):
+                    d.rmdir()
 
 
 def write_bytes(path: str | os.PathLike, data: bytes) -> None:

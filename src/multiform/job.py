@@ -15,10 +15,11 @@ Stages, each timed and each resumable (a finished stage's output on disk is reus
 
 from __future__ import annotations
 
+import contextlib
 import json
 import statistics
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from types import ModuleType
@@ -31,7 +32,7 @@ from .adapt.practice import Practice
 from .demos.dataset import read_dataset, write_dataset
 from .demos.episode import Episode
 from .demos.record import demo_push, record_many
-from .errors import InvalidInput
+from .errors import InvalidInput, Problem
 from .io import write_json
 from .learn.labels import LabelStore
 from .learn.training import fit_judge, fit_law, fit_regions, judged_places, mentor_records
@@ -257,7 +258,7 @@ class Job:
             queued = self._stage("baselines", lambda: self.baselines(model, ev)) if early else None
             scenarios = self._stage("practice", lambda: self.practise(model))
             main, rows = self._stage("evaluate", lambda: self.evaluate(model, ev, queued))
-        from .report.artifacts import write_artifacts
+        from .report.artifacts import RunSettings, write_artifacts
         ds = read_dataset(demos)
         ok = sum(e.outcome == "success" for e in ds)
         mentor = rate(ok, len(ds))
@@ -290,7 +291,9 @@ class Job:
         if per_ms:
             self.timings["closed_loop_us_per_sim_ms"] = round(float(statistics.median(per_ms)), 1)
         picked = ("success_trial", "recovery_trial") if self.view is not None else ()
-        self._stage("report", lambda: write_artifacts(self, model, main, picked, self.view))
+        settings = RunSettings(eval_trials=self.cfg.eval_trials, seed=self.cfg.seed, push_fraction=self.cfg.push_fraction,
+                               inverse_model=self.cfg.inverse_model, videos=self.cfg.videos)
+        self._stage("report", lambda: write_artifacts(self.out, self.task, model, m, main, settings, picked, self.view))
         self.timings["total_s"] = round(time.perf_counter() - t0, 1)
         m["timings"] = dict(self.timings)
         write_json(self.out / "metrics.json", m)
@@ -360,7 +363,8 @@ def _fit_definition(model: SkillModel, apn: APN, eps: Sequence[Episode], store: 
         if name in laws and (model.path / "laws" / f"{name}.npz").exists():
             continue
         t0 = time.perf_counter()
-        law, info = fit_law(apn, eps, name, seed=seed)
+        with _from_demonstrations(model, f"laws.{name}"):
+            law, info = fit_law(apn, eps, name, seed=seed)
         info["fit_seconds"] = round(time.perf_counter() - t0, 2)
         model.save_law(name, law)
         laws[name] = info
@@ -373,7 +377,8 @@ def _fit_definition(model: SkillModel, apn: APN, eps: Sequence[Episode], store: 
     for place in judged_places(apn):
         if place in judges and (model.path / "judges" / f"{place}.npz").exists():
             continue
-        judge, info = fit_judge(apn, eps, store, place, seed=seed)
+        with _from_demonstrations(model, f"places.{place}.judge"):
+            judge, info = fit_judge(apn, eps, store, place, seed=seed)
         model.save_judge(place, judge)
         judges[place] = info
         model.update_manifest(training={"judges": judges})
@@ -385,11 +390,28 @@ def _fit_definition(model: SkillModel, apn: APN, eps: Sequence[Episode], store: 
                 if "heldout_accuracy" in info else "")
         log(f"  judge {place}: kernel {info['kernel']}, CV {'-' if cv is None else f'{cv:.3f}'}{held}")
     if "regions" not in summary or model.regions() is None:
-        regions, info = fit_regions(apn, eps, seed=seed)
+        with _from_demonstrations(model, "regions"):
+            regions, info = fit_regions(apn, eps, seed=seed)
         model.save_regions(regions)
         summary["regions"] = info
         log(f"  regions over {', '.join(info['variables'])}: " +
             ", ".join(f"{p} ({n} states)" for p, n in info["places"].items()))
+
+
+@contextlib.contextmanager
+def _from_demonstrations(model: SkillModel, element: str) -> Iterator[None]:
+    """A fit the demonstrations cannot feed (no successful segment of a maneuver, too few states of a
+    place, degenerate data: the fit's ValueError) is bad input: an :class:`InvalidInput` naming the
+    demonstration file and what could not be learned."""
+    try:
+        yield
+    except InvalidInput as exc:
+        demos = str(model.manifest.get("demos") or "")
+        raise InvalidInput([p if p.file else Problem(demos, p.element or element, p.message)
+                            for p in exc.problems]) from None
+    except ValueError as exc:
+        raise InvalidInput(f"the demonstrations cannot train this: {exc}", file=str(model.manifest.get("demos") or ""),
+                           element=element) from None
 
 
 class _Beside:

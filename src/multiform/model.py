@@ -41,7 +41,7 @@ import numpy as np
 from .demos.dataset import read_dataset
 from .demos.episode import Episode
 from .errors import InvalidInput, Problem
-from .io import read_json, write_json
+from .io import plain_data_problems, read_json, write_json
 from .lock import exclusive
 from .learn.condition import load_condition
 from .learn.gp import GPLaw
@@ -83,6 +83,13 @@ class SkillModel:
         path = Path(path)
         src = resolve_skill(skill)
         apn = load_skill(src)                          # validate before writing anything
+        env_id = env_id or apn.env
+        if env_id and env_id in gym.registry:          # arguments the env refuses (read from the demos file)
+            where = str(demos) if demos else str(path / "model.json")
+            problems = plain_data_problems(dict(env_kwargs or {}), "env_kwargs")
+            if problems:
+                raise InvalidInput([Problem(where, e, msg) for e, msg in problems])
+            make_env(env_id, dict(env_kwargs or {}), where).close()
         path.mkdir(parents=True, exist_ok=True)
         dst = path / "skill.yaml"
         if dst.exists():
@@ -92,7 +99,7 @@ class SkillModel:
             shutil.copyfile(src, dst)
         manifest = {"format_version": MANIFEST_VERSION, "skill": apn.name,
                     "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-                    "env": env_id or apn.env, "env_kwargs": dict(env_kwargs or {}),
+                    "env": env_id, "env_kwargs": dict(env_kwargs or {}),
                     "demos": str(Path(demos).resolve()) if demos else None, "training": {},
                     "artifacts": {"skill.yaml": {"kind": "skill", "sha256": _sha256(dst)}}}
         old = path / "model.json"
@@ -117,6 +124,8 @@ class SkillModel:
                     for k, t in types.items() if not isinstance(m.get(k), t)]
         if m.get("demos") is not None and not isinstance(m["demos"], str):
             problems.append(Problem(where, "demos", f"must be a file name, got {type(m['demos']).__name__}"))
+        if isinstance(m.get("env_kwargs"), dict):
+            problems += [Problem(where, e, msg) for e, msg in plain_data_problems(m["env_kwargs"], "env_kwargs")]
         if problems:
             raise InvalidInput(problems)
         return m
@@ -227,19 +236,7 @@ class SkillModel:
         return manifest.get("env_kwargs", {}).get("action_mode") == "torque"
 
     def _env_id(self, m: Mapping[str, Any]) -> str:
-        import multiform.envs  # noqa: F401  (registers the envs)
-        env_id = m["env"]
-        where = str(self.path / "model.json")
-        if ":" in env_id:
-            module = env_id.split(":", 1)[0]
-            if module not in self.env_modules:
-                raise InvalidInput(f"{env_id!r} would import the module {module!r}; a model directory never runs "
-                                   f"code (name the module yourself to allow it: --env-module {module})",
-                                   file=where, element="env")
-            return env_id
-        if env_id not in gym.registry:
-            raise InvalidInput(f"{env_id!r} is not a registered Gymnasium env", file=where, element="env")
-        return env_id
+        return registered_env_id(m["env"], str(self.path / "model.json"), self.env_modules)
 
     # -- the net ----------------------------------------------------------------------------------
     @property
@@ -341,14 +338,7 @@ class SkillModel:
     def make_env(self, **overrides: Any) -> gym.Env:
         """The env the skill runs on (the manifest's id and arguments; ``overrides`` win)."""
         m = self.manifest
-        env_id = self._env_id(m)
-        # Gymnasium's passive checker wraps every step (≈ 10 µs at 1 kHz); our envs pass its full
-        # check_env in their tests, so the skill's runs go without it.
-        try:
-            return gym.make(env_id, disable_env_checker=True, **{**m["env_kwargs"], **overrides})
-        except (TypeError, ValueError) as exc:
-            raise InvalidInput(f"cannot make {env_id} with these arguments: {exc}", file=str(self.path / "model.json"),
-                               element="env_kwargs") from None
+        return make_env(m["env"], m["env_kwargs"], str(self.path / "model.json"), self.env_modules, **overrides)
 
     def executor(self, env: gym.Env, apn: APN | None = None, use_inverse_model: bool = True) -> Executor:
         """An executor for ``apn`` (default: the latest net) with this model's laws and conditions."""
@@ -380,6 +370,41 @@ class SkillModel:
         """The transitions of the skill as written that do not lead to failure (version 0 never changes)."""
         written = self.history.version(0)
         return frozenset(t.id for t in written.transitions if not written.leads_to_failure(t.id))
+
+
+def registered_env_id(env_id: Any, file: str, env_modules: Sequence[str] = ()) -> str:
+    """``env_id`` (read from ``file``) if it is a registered Gymnasium env; a ``module:Env-v0`` id,
+    which would import the module, only if the caller names the module in ``env_modules``."""
+    import multiform.envs  # noqa: F401  (registers the envs)
+    if not isinstance(env_id, str):
+        raise InvalidInput(f"must be a Gymnasium env id, got {type(env_id).__name__}", file=file, element="env")
+    if ":" in env_id:
+        module = env_id.split(":", 1)[0]
+        if module not in env_modules:
+            raise InvalidInput(f"{env_id!r} would import the module {module!r}; a file never makes multiform run "
+                               f"code (name the module yourself to allow it: --env-module {module})",
+                               file=file, element="env")
+        return env_id
+    if env_id not in gym.registry:
+        raise InvalidInput(f"{env_id!r} is not a registered Gymnasium env", file=file, element="env")
+    return env_id
+
+
+def make_env(env_id: Any, env_kwargs: Mapping[str, Any], file: str, env_modules: Sequence[str] = (),
+             **overrides: Any) -> gym.Env:
+    """The env ``env_id`` with ``env_kwargs``, both read from ``file`` (``overrides`` win): an id that
+    is not registered, or arguments the env refuses in any way, are an :class:`InvalidInput` naming
+    the file (an env's constructor may fail on a wrong type with any exception)."""
+    env_id = registered_env_id(env_id, file, env_modules)
+    # Gymnasium's passive checker wraps every step (≈ 10 µs at 1 kHz); our envs pass its full
+    # check_env in their tests, so the skill's runs go without it.
+    try:
+        return gym.make(env_id, disable_env_checker=True, **{**env_kwargs, **overrides})
+    except InvalidInput:
+        raise
+    except Exception as exc:
+        raise InvalidInput(f"cannot make {env_id} with these arguments ({type(exc).__name__}: {exc})", file=file,
+                           element="env_kwargs") from None
 
 
 @contextlib.contextmanager
