@@ -32,6 +32,7 @@ LAW_KEYS = {"inputs", "outputs", "mean", "lag", "description", "fit"}
 MAX_LAG = 1.0                    # s: a reaction time, not a plan
 MAX_TICKS = 1_000_000            # control ticks of one trial (max_duration × control_rate): its trace is kept in memory
 MAX_CONTROL_RATE = 100_000.0     # Hz
+MAX_LAMBDA = 1e9                 # a firing probability's weight: a sum of them must stay finite
 MAX_FILE_BYTES = 16 << 20        # a skill file (a 10,000-place net is about 1 MB)
 MAX_NODES = 2_000_000            # YAML nodes with every alias expanded (an "alias bomb" expands to billions)
 MAX_COUNT = 2**31 - 1            # tokens in a place, weight of an arc (int32, as other PNML tools hold them)
@@ -554,6 +555,9 @@ def parse_transitions(raw: Mapping[str, Any], place_ids: set[str], transition_id
             lam = 1.0
         elif lam < 0:
             bad(f"{el}.lambda", f"must not be negative, got {lam!r}")
+            lam = 1.0
+        elif lam > MAX_LAMBDA:
+            bad(f"{el}.lambda", f"{_shown(lam)} is out of range (at most {MAX_LAMBDA:g}; λ are relative weights)")
             lam = 1.0
         law = spec.get("law")
         if law is not None:
