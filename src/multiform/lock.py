@@ -85,10 +85,14 @@ def lock_folder() -> Path:
                        element="locks")
 
 
+def lock_name(target: str | os.PathLike) -> str:
+    """The name of ``target``'s lock file (from its absolute path) in the lock folder."""
+    return hashlib.sha256(str(Path(target).resolve()).encode()).hexdigest()[:32] + ".lock"
+
+
 def lock_file(target: str | os.PathLike) -> Path:
-    """The lock file of ``target`` (a folder or a file, by its absolute path)."""
-    key = hashlib.sha256(str(Path(target).resolve()).encode()).hexdigest()[:32]
-    return lock_folder() / f"{key}.lock"
+    """The lock file of ``target`` (a folder or a file)."""
+    return lock_folder() / lock_name(target)
 
 
 def _open_lock(path: Path, target: str | os.PathLike) -> int:

@@ -150,7 +150,7 @@ class SkillModel:
         """Everything wrong with the directory: artifacts missing, changed, unlisted, unreadable or
         not finite; a history that does not replay; and, for running the skill (``to_run``), the
         net's laws and conditions without a fit, a torque-driven env without its inverse model, an
-        env id that is not allowed."""
+        env id that is not allowed or arguments the env refuses, demonstrations that are not a file."""
         try:
             m = self.manifest
             apn = self.apn
@@ -183,8 +183,12 @@ class SkillModel:
             out.append(Problem(str(self.path / "inverse_model.npz"), "",
                                f"missing: the env takes joint torques (env_kwargs {m['env_kwargs']}), and without "
                                f"the inverse model nothing turns the skill's commands into torques"))
+        demos = m.get("demos")
+        if demos and os.path.lexists(demos) and not os.path.isfile(demos):
+            out.append(Problem(demos, "", "not a regular file (a folder, FIFO or device); model.json names it as "
+                                          "the model's demonstrations"))
         try:
-            self._env_id(m)
+            self.make_env().close()          # the env's id and the arguments it takes, before any trial
         except InvalidInput as exc:
             out += exc.problems
         return out

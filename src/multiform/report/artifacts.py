@@ -27,7 +27,7 @@ from .plots import motion_plot, practice_plot, rates_plot
 
 MAX_EVAL_TRIALS = 1_000_000
 MAX_SEED = 2**31 - 1
-_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}")
+_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}")      # a scenario's name: a folder of the run
 
 
 @dataclass(frozen=True)
@@ -125,9 +125,6 @@ def write_artifacts(out: Path, task: Task, model: SkillModel, metrics: dict[str,
                    if r.get("version")}
     art["nets"] = draw_versions(model, out / "nets", scenario_of)
     for name, s in metrics.get("scenarios", {}).items():
-        if not isinstance(name, str) or not _NAME.fullmatch(name):
-            raise InvalidInput(f"scenario name {str(name)[:40]!r} is not a name (letters, digits, _ . -)",
-                               file=str(out / "metrics.json"), element="scenarios")
         state = read_json(out / "practice" / name / "state.json")
         revs = [r for r in state["revisions"] if r.get("operator") != "none"]
         p = practice_plot(state["trials"], revs, out / "plots" / f"practice_{name}.png", title=s["title"])
@@ -190,6 +187,13 @@ def rebuild(run_dir: str | Path, task: Task, view: bool = False) -> Path:
     if not isinstance(metrics, dict):
         raise InvalidInput("must be a JSON object", file=file)
     settings = RunSettings.from_config(metrics.get("config", {}), file)
+    scenarios = metrics.get("scenarios", {})
+    if not isinstance(scenarios, dict):
+        raise InvalidInput("must be an object", file=file, element="scenarios")
+    for name in scenarios:          # each names a folder of the run: practice/NAME
+        if not _NAME.fullmatch(name) or name.startswith("."):
+            raise InvalidInput(f"scenario name {name[:40]!r} is not a name (letters, digits, _ . -)", file=file,
+                               element="scenarios")
     trials = read_json(run / "evaluation_trials.json", "evaluation trials")
     if not isinstance(trials, dict) or not all(isinstance(v, list) for v in trials.values()):
         raise InvalidInput("must map each variant to its list of trials", file=str(run / "evaluation_trials.json"))

@@ -75,8 +75,8 @@ class LiveView:
             self.dropped += 1
 
     def _send(self, recording_id: str) -> None:
+        self._rec = rec = rr.RecordingStream(APP, recording_id=recording_id)
         try:
-            rec = rr.RecordingStream(APP, recording_id=recording_id)
             rec.set_sinks(rr.GrpcSink(self.url))
             while True:
                 try:
@@ -87,24 +87,37 @@ class LiveView:
                     continue
                 getattr(rec, method)(*args, **kwargs)
             rec.flush(timeout_sec=self.FLUSH_SECONDS)
-            rec.disconnect()
         except Exception as exc:          # the viewer is best effort: its failure is reported, not raised
             self.error = f"{type(exc).__name__}: {exc}"
+            _keep_for_ever(rec)
+            return
+        rec.disconnect()
 
     def close(self, timeout: float = 5.0) -> str:
         """Let the thread send what is queued, waiting ``timeout`` seconds at most; returns "" if the
-        viewer took it all, else what went wrong. A viewer still not answering is left behind (rerun's
-        exit-time flush is switched off, which would wait for it for ever)."""
+        viewer took it all, else what went wrong. A viewer still not answering is left behind (see
+        :func:`_keep_for_ever`)."""
         self._closing.set()
         self._thread.join(timeout)
         if self._thread.is_alive():
-            rr.unregister_shutdown()
+            if getattr(self, "_rec", None) is not None:
+                _keep_for_ever(self._rec)
             return f"the viewer at {self.url} did not answer within {timeout:g} s"
         if self.error:
             return f"the viewer at {self.url} could not be reached ({self.error.splitlines()[0][:200]})"
         if self.dropped:
             return f"the viewer at {self.url} was too slow: {self.dropped} of the recording's messages were not sent"
         return ""
+
+
+def _keep_for_ever(rec: rr.RecordingStream) -> None:
+    """Never release ``rec``, whose viewer does not answer: rerun disconnects a released stream (at the
+    next release of any stream, or at exit) by waiting for its viewer, for ever if it never answers.
+    The stream is leaked instead (a reference that is never dropped) and rerun's exit-time flush of
+    every stream is switched off."""
+    import ctypes
+    ctypes.pythonapi.Py_IncRef(ctypes.py_object(rec))
+    rr.unregister_shutdown()
 
 
 class _Tee:
