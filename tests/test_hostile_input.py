@@ -528,7 +528,7 @@ def test_hostile_input_is_refused_in_one_line_and_changes_nothing(work, case, ca
 
 
 def test_there_are_at_least_sixty_cases():
-    assert len(CASES) >= 60 + 40
+    assert len(CASES) >= 150
 
 
 def test_default_outputs_stay_in_the_current_folder(work, capsys):

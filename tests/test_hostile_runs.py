@@ -195,6 +195,7 @@ def test_a_refused_second_train_leaves_the_first_ones_work_and_a_stale_one_block
     finally:
         first.kill()            # killed: its staging folder stays behind, stale
         first.wait()
+        first.stdout.close()
     assert partial.is_dir()
     (partial / "skill.yaml").write_text("skill: something else\n")
 

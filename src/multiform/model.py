@@ -84,6 +84,7 @@ class SkillModel:
         src = resolve_skill(skill)
         apn = load_skill(src)                          # validate before writing anything
         env_id = env_id or apn.env
+        import multiform.envs  # noqa: F401  (registers the envs)
         if env_id and env_id in gym.registry:          # arguments the env refuses (read from the demos file)
             where = str(demos) if demos else str(path / "model.json")
             problems = plain_data_problems(dict(env_kwargs or {}), "env_kwargs")
@@ -238,9 +239,6 @@ class SkillModel:
     def needs_inverse_model(manifest: Mapping[str, Any]) -> bool:
         """Whether the env takes joint torques, so the skill's commands need the inverse model."""
         return manifest.get("env_kwargs", {}).get("action_mode") == "torque"
-
-    def _env_id(self, m: Mapping[str, Any]) -> str:
-        return registered_env_id(m["env"], str(self.path / "model.json"), self.env_modules)
 
     # -- the net ----------------------------------------------------------------------------------
     @property

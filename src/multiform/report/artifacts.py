@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import MISSING, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -48,19 +48,22 @@ class RunSettings:
         line allows (a number from a file bounds the work a redraw does)."""
         if not isinstance(config, Mapping):
             raise InvalidInput("must be an object", file=file, element="config")
-        checks = {"eval_trials": (int, 1, MAX_EVAL_TRIALS), "seed": (int, 0, MAX_SEED),
-                  "push_fraction": (float, 0.0, 1.0), "inverse_model": (bool, None, None),
-                  "videos": (bool, None, None)}
+        ranges = {"eval_trials": (1, MAX_EVAL_TRIALS), "seed": (0, MAX_SEED), "push_fraction": (0.0, 1.0)}
         values, problems = {}, []
-        for key, (kind, low, high) in checks.items():
-            v = config.get(key, cls.__dataclass_fields__[key].default)
-            numeric = isinstance(v, (int, float)) and not isinstance(v, bool)
-            ok = isinstance(v, bool) if kind is bool else (numeric and (kind is float or isinstance(v, int))
-                                                           and low <= v <= high)
+        for key, field in cls.__dataclass_fields__.items():
+            v = values[key] = config.get(key, field.default)
+            if v is MISSING:
+                problems.append(Problem(file, f"config.{key}", "missing"))
+                continue
+            if key not in ranges:
+                ok, want = isinstance(v, bool), "true or false"
+            else:
+                low, high = ranges[key]
+                whole = isinstance(low, int)
+                ok = (not isinstance(v, bool) and isinstance(v, int if whole else (int, float)) and low <= v <= high)
+                want = f"a {'whole ' if whole else ''}number in {low}..{high}"
             if not ok:
-                want = "true or false" if kind is bool else f"a {'whole ' if kind is int else ''}number in {low}..{high}"
                 problems.append(Problem(file, f"config.{key}", f"must be {want}, got {str(v)[:40]!r}"))
-            values[key] = v
         if problems:
             raise InvalidInput(problems)
         return cls(**values)

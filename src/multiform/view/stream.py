@@ -62,6 +62,7 @@ class LiveView:
         self.url = url
         self.dropped = 0
         self.error = ""
+        self._rec: rr.RecordingStream | None = None
         self._queue: queue.Queue = queue.Queue(maxsize=capacity)
         self._closing = threading.Event()
         self._thread = threading.Thread(target=self._send, args=(recording_id,), name="multiform-view", daemon=True)
@@ -75,8 +76,8 @@ class LiveView:
             self.dropped += 1
 
     def _send(self, recording_id: str) -> None:
-        self._rec = rec = rr.RecordingStream(APP, recording_id=recording_id)
         try:
+            self._rec = rec = rr.RecordingStream(APP, recording_id=recording_id)
             rec.set_sinks(rr.GrpcSink(self.url))
             while True:
                 try:
@@ -89,7 +90,8 @@ class LiveView:
             rec.flush(timeout_sec=self.FLUSH_SECONDS)
         except Exception as exc:          # the viewer is best effort: its failure is reported, not raised
             self.error = f"{type(exc).__name__}: {exc}"
-            _keep_for_ever(rec)
+            if self._rec is not None:
+                _keep_for_ever(self._rec)
             return
         rec.disconnect()
 
@@ -100,7 +102,7 @@ class LiveView:
         self._closing.set()
         self._thread.join(timeout)
         if self._thread.is_alive():
-            if getattr(self, "_rec", None) is not None:
+            if self._rec is not None:
                 _keep_for_ever(self._rec)
             return f"the viewer at {self.url} did not answer within {timeout:g} s"
         if self.error:
