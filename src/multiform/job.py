@@ -16,7 +16,6 @@ Stages, each timed and each resumable (a finished stage's output on disk is reus
 from __future__ import annotations
 
 import contextlib
-import json
 import statistics
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -33,7 +32,7 @@ from .demos.dataset import read_dataset, write_dataset
 from .demos.episode import Episode
 from .demos.record import demo_push, record_many
 from .errors import InvalidInput, Problem
-from .io import write_json
+from .io import read_json, write_json
 from .learn.labels import LabelStore
 from .learn.training import fit_judge, fit_law, fit_regions, judged_places, mentor_records
 from .lock import exclusive
@@ -239,13 +238,21 @@ class Job:
 
     # -- the whole job ----------------------------------------------------------------------------
     def run(self) -> dict[str, Any]:
-        """The whole job, holding the run folder's lock (a second job on it is refused)."""
+        """The whole job, holding the run folder's lock (a second job on it is refused). A run folder
+        this call made is removed again if the job fails before anything is in it."""
+        made = not self.out.exists()
         try:
             self.out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise InvalidInput(f"cannot create the run folder ({exc.strerror})", file=str(self.out)) from None
-        with exclusive(self.out):
-            return self._run()
+        try:
+            with exclusive(self.out):
+                return self._run()
+        except BaseException:
+            if made:
+                with contextlib.suppress(OSError):
+                    self.out.rmdir()          # only if empty: what a failed job made is kept to resume from
+            raise
 
     def _run(self) -> dict[str, Any]:
         t0 = time.perf_counter()
@@ -468,4 +475,4 @@ def _train_beside(trainer: Callable[..., dict[str, Any]], path: str, seed: int, 
 
 
 def load_metrics(out: str | Path) -> dict[str, Any]:
-    return json.loads((Path(out) / "metrics.json").read_text())
+    return read_json(Path(out) / "metrics.json", "run metrics")

@@ -14,13 +14,12 @@ folder (no scheme, so no ``javascript:`` or ``data:`` URL).
 from __future__ import annotations
 
 import html
-import json
 import os
 import re
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-from ..io import write_text
+from ..io import read_json, write_text
 from ..stats import rate
 
 CSS = """
@@ -205,7 +204,7 @@ def build_report(run_dir: str | os.PathLike, metrics: dict[str, Any] | None = No
     """Write ``run_dir/report.html`` from ``metrics`` (default: ``run_dir/metrics.json``)."""
     run = Path(run_dir)
     if metrics is None:
-        metrics = json.loads((run / "metrics.json").read_text())
+        metrics = read_json(run / "metrics.json", "run metrics")
     write_text(run / "report.html", page_html(metrics))
     return run / "report.html"
 
