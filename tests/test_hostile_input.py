@@ -482,6 +482,8 @@ CASES += [
     ("demos_info_a_fifo", lambda w: do(["demos", "info", _fifo(w / "f.h5")], "f.h5")),
     ("replay_a_fifo", lambda w: do(["replay", _fifo(w / "f.h5")], "f.h5")),
     ("net_history_a_fifo", lambda w: do(["net", "history", "pendulum", "--history", _fifo(w / "h.jsonl")], "h.jsonl")),
+    ("net_import_a_fifo", lambda w: do(["net", "import", _fifo(w / "n.pnml")], "n.pnml")),
+    ("net_import_a_folder", lambda w: do(["net", "import", str(w / "run")], "run")),
     ("model_json_a_fifo", lambda w: do(_fifo(w / "model" / "model.json"), [*M, str(w / "model")], "model.json")),
     ("model_json_nested_deep", lambda w: do((w / "model" / "model.json").write_text(DEEP_JSON), [*M, str(w / "model")],
                                             "model.json")),

@@ -157,7 +157,7 @@ def plain_data_problems(value: Any, element: str = "", max_depth: int = MAX_NEST
         if isinstance(v, bool) or v is None or isinstance(v, str):
             continue
         if isinstance(v, (int, float)):
-            if not math.isfinite(v) or abs(v) > magnitude:
+            if (isinstance(v, float) and not math.isfinite(v)) or abs(v) > magnitude:
                 out.append((where, f"number {_short(v)} is out of range (finite, at most {magnitude:g} in size)"))
         elif isinstance(v, Mapping):
             for k, x in v.items():
@@ -172,6 +172,8 @@ def plain_data_problems(value: Any, element: str = "", max_depth: int = MAX_NEST
 
 
 def _short(v: Any) -> str:
+    if isinstance(v, int) and abs(v).bit_length() > 128:
+        return f"a number of about {int(abs(v).bit_length() * 0.30103) + 1} digits"
     text = repr(v)
     return text if len(text) <= 40 else f"{text[:30]}...({len(text)} characters)"
 
@@ -207,8 +209,8 @@ def loads_json(data: bytes | str, file: str, element: str = "") -> Any:
     :class:`InvalidInput` naming the file (and ``element``)."""
     try:
         return json.loads(data)
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise InvalidInput(f"not valid JSON ({exc})", file=file, element=element) from None
+    except ValueError as exc:           # bad JSON or UTF-8, a number of more digits than Python converts
+        raise InvalidInput(f"not valid JSON ({str(exc)[:200]})", file=file, element=element) from None
     except RecursionError:
         raise InvalidInput("not valid here: lists or objects nested too deeply", file=file, element=element) from None
 

@@ -389,7 +389,8 @@ def _read_demo(g: h5py.Group, name: str, obs_names: tuple[str, ...], cmd_names: 
     seed = g.attrs.get("seed", 0)
     if not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2**63:
         raise bad("seed", f"must be a whole number in 0..2**63-1, got {seed!r}")
-    actions = actions.astype(np.float64) * scale
+    with np.errstate(over="ignore"):            # an overflow is found (and named) just below
+        actions = actions.astype(np.float64) * scale
     _check_values(actions, "actions", bad, "after action_scale")
     return Episode(obs=obs, actions=actions, transitions=tags,
                    observation_names=obs_names, command_names=cmd_names, dt=dt,

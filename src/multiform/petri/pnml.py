@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InvalidInput, Problem
-from ..io import write_text
+from ..io import read_bytes, write_text
 from .net import APN
 from .skillfile import IDENT, MAX_COUNT, build_apn, skill_to_data
 
@@ -385,8 +385,4 @@ def _final_marking(net: ET.Element, place_ids: set[str], file: str, problems: li
 def read_pnml(path: str | os.PathLike) -> APN:
     """Read a PNML file (its encoding as the XML declaration says)."""
     path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise InvalidInput(f"cannot read ({exc})", file=str(path)) from None
-    return from_pnml(data, str(path))
+    return from_pnml(read_bytes(path, "PNML file", limit=64 << 20), str(path))
