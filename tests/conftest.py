@@ -21,3 +21,22 @@ def mountain_car_class():
     finally:
         sys.path.remove(str(MOUNTAIN_CAR))
     return MountainCar
+
+
+@pytest.fixture(scope="session")
+def hostile_lab(tmp_path_factory) -> Path:
+    """Four pendulum mentor demos and a model trained from them (the env takes the hand command
+    itself), shared by the hostile-input tests, which copy it and never change it."""
+    from multiform.demos.dataset import write_dataset
+    from multiform.teach.record import record_many
+    from multiform.trainer import train_model
+    from multiform.model import SkillModel
+    from multiform.task import load_task
+    task = load_task("pendulum")
+    root = tmp_path_factory.mktemp("hostile")
+    eps = record_many("pendulum", [0, 1, 2, 9], task.DEMO_ENV_KWARGS)
+    demos = write_dataset(root / "demos.h5", eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)
+    model = SkillModel.create(root / "model", task.SKILL, demos, task.ENV_ID, task.DEMO_ENV_KWARGS)
+    train_model(model, seed=0, log=lambda *a: None)
+    (root / "run").mkdir()
+    return root

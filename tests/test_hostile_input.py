@@ -17,9 +17,6 @@ import numpy as np
 import pytest
 
 from multiform.cli import EXIT_MISSING, main
-from multiform.demos.dataset import write_dataset
-from multiform.teach.record import record_many
-from multiform.job import train_model
 from multiform.model import SkillModel
 from multiform.petri.skillfile import resolve_skill
 from multiform.task import load_task
@@ -29,15 +26,9 @@ EVIL = "multiform_evil_module"          # a module that leaves a mark when impor
 
 
 @pytest.fixture(scope="module")
-def lab(tmp_path_factory) -> Path:
-    """Four mentor demos and a model trained from them (the env takes the hand command itself)."""
-    root = tmp_path_factory.mktemp("hostile")
-    eps = record_many("pendulum", [0, 1, 2, 9], task.DEMO_ENV_KWARGS)
-    demos = write_dataset(root / "demos.h5", eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)
-    model = SkillModel.create(root / "model", task.SKILL, demos, task.ENV_ID, task.DEMO_ENV_KWARGS)
-    train_model(model, seed=0, log=lambda *a: None)
-    (root / "run").mkdir()
-    return root
+def lab(hostile_lab) -> Path:
+    """Four mentor demos and a model trained from them (see conftest's ``hostile_lab``)."""
+    return hostile_lab
 
 
 @pytest.fixture()
@@ -291,9 +282,249 @@ CASES: list[tuple[str, Callable[[Path], tuple[list[str], str]]]] = [
 ]
 
 
+# -- a run folder is data, numbers are bounded where they enter, no input blocks or forges a line --
+
+def _run_folder(w: Path, task_name: str = "pendulum", config: dict | None = None, trials: int = 2,
+                **metrics) -> Path:
+    """A finished run's metrics.json and evaluation_trials.json (its model is not needed to refuse it)."""
+    seeds = [s.seed for s in task.evaluation_specs(trials, 0, 0.5)]
+    cfg = {"eval_trials": trials, "seed": 0, "push_fraction": 0.5, "videos": False, "inverse_model": False,
+           **(config or {})}
+    (w / "run" / "metrics.json").write_text(json.dumps({"skill": "pendulum", "task": task_name, "task_spec": task_name,
+                                                        "config": cfg, "scenarios": {}, "revisions": [], **metrics}))
+    detail = [{"seed": s, "success": True, "self_success": True, "pushed": False, "fired": ["t0"]} for s in seeds]
+    (w / "run" / "evaluation_trials.json").write_text(json.dumps({"multiform": detail}))
+    return w / "run"
+
+
+def _demos(w: Path, edit: Callable[[h5py.File], None], name: str = "n.h5") -> str:
+    """A copy of the demos with ``edit`` applied to the open file."""
+    shutil.copy(w / "demos.h5", w / name)
+    with h5py.File(w / name, "r+") as f:
+        edit(f)
+    return str(w / name)
+
+
+def _replace(g: h5py.Group, key: str, data) -> None:
+    del g[key]
+    g.create_dataset(key, data=data)
+
+
+def _attr_json(path: str, value) -> Callable[[h5py.File], None]:
+    def edit(f: h5py.File) -> None:
+        f[path.rsplit("/", 1)[0]].attrs[path.rsplit("/", 1)[1]] = value if isinstance(value, str) else json.dumps(value)
+    return edit
+
+
+def _env_kwargs(**kwargs) -> Callable[[h5py.File], None]:
+    def edit(f: h5py.File) -> None:
+        args = json.loads(f["data"].attrs["env_args"])
+        args["env_kwargs"].update(kwargs)
+        f["data"].attrs["env_args"] = json.dumps(args)
+    return edit
+
+
+def _all_labels_failed(f: h5py.File) -> None:
+    for k in f["data"]:
+        labels = f["data"][k]["labels"][()]
+        labels["success"] = 0
+        _replace(f["data"][k], "labels", labels)
+
+
+def _only_transition(tag: str) -> Callable[[h5py.File], None]:
+    """Every sample and label tagged with the one transition ``tag``."""
+    def edit(f: h5py.File) -> None:
+        code = json.loads(f["data"].attrs["transition_names"]).index(tag)
+        for k in f["data"]:
+            g = f["data"][k]
+            _replace(g, "transition", np.full_like(g["transition"][()], code))
+            labels = g["labels"][()]
+            labels["transition"] = tag.encode()
+            _replace(g, "labels", labels)
+    return edit
+
+
+def _action_past_the_scale(f: h5py.File) -> None:
+    """A format-2 file (actions stored divided by a power-of-two scale) with one action finite as
+    stored, infinite once multiplied by the file's action scale (2**1023 here; every other action 0)."""
+    d = f["data"]
+    d.attrs["format_version"] = 2
+    for key in ("action_low", "action_high"):
+        if key in d.attrs:
+            del d.attrs[key]
+    d.attrs["action_scale"] = np.full(len(json.loads(d.attrs["command_names"])), 2.0 ** 1023)
+    for k in (k for k in d if k.startswith("demo_")):
+        if "commands" in d[k]:
+            del d[k]["commands"]
+        actions = np.zeros_like(d[k]["actions"][()])
+        actions[3, 0] = 2.5 if k == "demo_0" else 0.0
+        _replace(d[k], "actions", actions)
+
+
+def _command_out_of_range(f: h5py.File) -> None:
+    """One of the exact commands training reads (format 3) finite but far beyond any physical value."""
+    d = f["data"]["demo_0"]
+    commands = d["commands"][()]
+    commands[3, 0] = 1.7e308
+    _replace(d, "commands", commands)
+
+
+def _observation(value: float) -> Callable[[h5py.File], None]:
+    def edit(f: h5py.File) -> None:
+        g = f["data/demo_1/obs"]
+        key = sorted(g)[0]
+        col = g[key][()].astype(np.float64)
+        col[4, 0] = value
+        _replace(g, key, col)
+    return edit
+
+
+def _fifo(path: Path) -> str:
+    path.unlink(missing_ok=True)
+    os.mkfifo(path)
+    return str(path)
+
+
+def _chain(n: int) -> str:
+    """A chain net of ``n`` places."""
+    lines = ["skill: chain", "variables: [x]", "commands: [u]", "places:"]
+    lines += [f"  P{i}: {{label: p{i}}}" for i in range(n - 1)] + [f"  P{n - 1}: {{final: success}}"]
+    lines += ["initial_marking: {P0: 1}", "transitions:"] + [f"  t{i}: {{in: [P{i}], out: [P{i + 1}]}}"
+                                                              for i in range(n - 1)]
+    return "\n".join(lines) + "\n"
+
+
+BOMB = ("a: &a [x, x, x, x, x, x, x, x, x, x]\n"
+        + "".join(f"{c}: &{c} [{', '.join(['*' + p] * 10)}]\n" for p, c in zip("abcdefgh", "bcdefghi")))
+PENDULUM_TEXT = resolve_skill("pendulum").read_text()
+DEEP_JSON = "[" * 100_000 + "]" * 100_000
+
+
+def _redraw(w: Path) -> list[str]:
+    return ["report", str(w / "run"), "--redraw"]
+
+
+def _skill(w: Path, old: str, new: str) -> str:
+    assert old in PENDULUM_TEXT
+    return skill_file(w, PENDULUM_TEXT.replace(old, new, 1))
+
+
+CASES += [
+    # 1. report --redraw runs only the task the user names; a run folder's config is bounded
+    ("redraw_task_spec_names_a_module", lambda w: do(_run_folder(w, f"{EVIL}:T"), _redraw(w), "metrics.json")),
+    ("redraw_task_spec_names_a_file", lambda w: do(
+        (w / "evil.py").write_text(f"open({str(w / 'imported')!r}, 'w').write('x')\n"),
+        _run_folder(w, str(w / "evil.py") + ":T"), _redraw(w), "metrics.json")),
+    ("redraw_task_unknown_name", lambda w: do(_run_folder(w, "juggling"), _redraw(w), "juggling")),
+    ("redraw_task_not_text", lambda w: do(_run_folder(w, ["pendulum"]), _redraw(w), "metrics.json")),
+    ("redraw_user_task_missing", lambda w: do(_run_folder(w), [*_redraw(w), "--task", "no_such_pkg_xyz:T"],
+                                              "no_such_pkg_xyz")),
+    ("redraw_eval_trials_huge", lambda w: do(_run_folder(w, config={"eval_trials": 10**12}), _redraw(w),
+                                             "config.eval_trials")),
+    ("redraw_eval_trials_text", lambda w: do(_run_folder(w, config={"eval_trials": "200"}), _redraw(w),
+                                             "config.eval_trials")),
+    ("redraw_seed_negative", lambda w: do(_run_folder(w, config={"seed": -1}), _redraw(w), "config.seed")),
+    ("redraw_push_fraction_nan", lambda w: do(_run_folder(w, config={"push_fraction": float("nan")}), _redraw(w),
+                                              "config.push_fraction")),
+    ("redraw_videos_not_bool", lambda w: do(_run_folder(w, config={"videos": "yes"}), _redraw(w), "config.videos")),
+    ("redraw_config_a_list", lambda w: do(_run_folder(w), edit_json(w / "run" / "metrics.json",
+                                                                    lambda d: d.update(config=[1])),
+                                          _redraw(w), "config")),
+    ("redraw_trials_disagree_with_config", lambda w: do(_run_folder(w, config={"eval_trials": 3}), _redraw(w),
+                                                        "evaluation_trials.json")),
+    ("redraw_scenario_name_a_path", lambda w: do(_run_folder(w, scenarios={"../../../tmp/x": {"title": "x"}}),
+                                                 _redraw(w), "scenarios")),
+    ("report_metrics_a_fifo", lambda w: do(_fifo(w / "run" / "metrics.json"), ["report", str(w / "run")],
+                                           "metrics.json")),
+    ("report_metrics_nested_deep", lambda w: do((w / "run" / "metrics.json").write_text(DEEP_JSON),
+                                                ["report", str(w / "run")], "metrics.json")),
+    # 7. analysis and YAML bounded
+    ("check_alias_bomb_description", lambda w: do(["check", skill_file(w, BOMB + "skill: x\ndescription: *i\n")],
+                                                  "bad.yaml")),
+    ("check_alias_bomb_label", lambda w: do(["check", _skill(w, "P0:   {label: hanging at rest}",
+                                                             "P0:   {label: *i}\n" + "".join(
+                                                                 "  " + line + "\n" for line in BOMB.splitlines()))],
+                                            "bad.yaml")),
+    ("check_alias_holds_itself", lambda w: do(["check", skill_file(w, "skill: &s [1, *s]\n")], "bad.yaml")),
+    ("check_dev_urandom", lambda w: do(["check", "/dev/urandom"], "/dev/urandom")),
+    ("check_fifo", lambda w: do(["check", _fifo(w / "f.yaml")], "f.yaml")),
+    ("check_file_too_large", lambda w: do((w / "big.yaml").write_text("# " + "x" * (17 << 20) + "\n"),
+                                          ["check", str(w / "big.yaml")], "big.yaml")),
+    ("check_max_seconds_zero", lambda w: do(["check", "pendulum", "--max-seconds", "0"], "--max-seconds")),
+    ("check_max_seconds_nan", lambda w: do(["check", "pendulum", "--max-seconds", "nan"], "--max-seconds")),
+    # 8. numbers range-checked where they enter
+    ("check_max_duration_huge", lambda w: do(["check", _skill(w, "max_duration: 30.0", "max_duration: 1e12")],
+                                             "max_duration")),
+    ("check_control_rate_huge", lambda w: do(["check", _skill(w, "control_rate: 1000", "control_rate: 1e9")],
+                                             "control_rate")),
+    ("check_lambda_huge", lambda w: do(["check", _skill(w, "law: swing_up, lambda: 1.0", "law: swing_up, lambda: 1e300")],
+                                       "lambda")),
+    ("train_action_infinite_after_scale", lambda w: do(
+        ["train", "pendulum", _demos(w, _action_past_the_scale), "-o", "m"], "actions")),
+    ("train_command_out_of_range", lambda w: do(
+        ["train", "pendulum", _demos(w, _command_out_of_range), "-o", "m"], "commands")),
+    ("train_observation_1e308", lambda w: do(["train", "pendulum", _demos(w, _observation(1e308)), "-o", "m"], "obs/")),
+    ("demos_info_observation_1e20", lambda w: do(["demos", "info", _demos(w, _observation(1e20))], "obs/")),
+    ("train_reset_options_deep", lambda w: do(
+        ["train", "pendulum", _demos(w, _attr_json("data/demo_0/reset_options", DEEP_JSON)), "-o", "m"],
+        "reset_options")),
+    ("train_reset_options_huge_number", lambda w: do(
+        ["train", "pendulum", _demos(w, _attr_json("data/demo_0/reset_options", {"x0": 1e300})), "-o", "m"],
+        "reset_options")),
+    ("train_reset_options_a_list", lambda w: do(
+        ["train", "pendulum", _demos(w, _attr_json("data/demo_0/reset_options", [1, 2])), "-o", "m"],
+        "reset_options")),
+    ("train_demo_seed_negative", lambda w: do(
+        ["train", "pendulum", _demos(w, lambda f: f["data/demo_2"].attrs.__setitem__("seed", -5)), "-o", "m"],
+        "seed")),
+    ("train_env_kwargs_nan", lambda w: do(["train", "pendulum", _demos(w, _env_kwargs(gain=float("nan"))), "-o", "m"],
+                                          "env_kwargs")),
+    ("train_env_args_a_list", lambda w: do(["train", "pendulum", _demos(w, _attr_json("data/env_args", [1])), "-o", "m"],
+                                           "env_args")),
+    ("model_env_kwargs_huge", lambda w: do(
+        edit_json(w / "model" / "model.json", lambda d: d["env_kwargs"].update(action_limit=1e300)),
+        [*M, str(w / "model")], "env_kwargs")),
+    ("model_env_kwargs_refused_by_the_env", lambda w: do(
+        edit_json(w / "model" / "model.json", lambda d: d["env_kwargs"].update(gains=5)),
+        [*M, str(w / "model")], "env_kwargs")),
+    # 9. bad training data: exit 2 naming the file
+    ("train_all_segments_failed", lambda w: do(["train", "pendulum", _demos(w, _all_labels_failed), "-o", "m"], "n.h5")),
+    ("train_one_transition_demonstrated", lambda w: do(
+        ["train", "pendulum", _demos(w, _only_transition("t1")), "-o", "m"], "n.h5")),
+    ("train_env_kwargs_refused_by_the_env", lambda w: do(
+        ["train", "pendulum", _demos(w, _env_kwargs(gains=5)), "-o", "m"], "n.h5")),
+    # 11. FIFOs, deep nesting, forged lines, code named in data
+    ("practice_demos_a_fifo", lambda w: do(
+        _fifo(w / "d.fifo"), edit_json(w / "model" / "model.json", lambda d: d.update(demos=str(w / "d.fifo"))),
+        [*M, str(w / "model")], "d.fifo")),
+    ("demos_info_a_fifo", lambda w: do(["demos", "info", _fifo(w / "f.h5")], "f.h5")),
+    ("replay_a_fifo", lambda w: do(["replay", _fifo(w / "f.h5")], "f.h5")),
+    ("net_history_a_fifo", lambda w: do(["net", "history", "pendulum", "--history", _fifo(w / "h.jsonl")], "h.jsonl")),
+    ("net_import_a_fifo", lambda w: do(["net", "import", _fifo(w / "n.pnml")], "n.pnml")),
+    ("net_import_a_folder", lambda w: do(["net", "import", str(w / "run")], "run")),
+    ("model_json_a_fifo", lambda w: do(_fifo(w / "model" / "model.json"), [*M, str(w / "model")], "model.json")),
+    ("model_json_nested_deep", lambda w: do((w / "model" / "model.json").write_text(DEEP_JSON), [*M, str(w / "model")],
+                                            "model.json")),
+    ("model_history_nested_deep", lambda w: do(_history(w, DEEP_JSON), [*M, str(w / "model")], "skill.history.jsonl")),
+    ("label_labels_nested_deep", lambda w: do(
+        (w / "model" / "labels.jsonl").write_text(DEEP_JSON + "\n"),
+        ["label", str(w / "demos.h5"), "-m", str(w / "model"), "--script", "s"], "labels.jsonl")),
+    ("replay_demo_env_names_a_module", lambda w: do(
+        ["replay", _demos(w, _attr_json("data/env_args", {"env_name": f"{EVIL}:Foo-v0", "type": 2, "env_kwargs": {}}))],
+        EVIL)),
+    ("check_newline_in_path", lambda w: do(["check", str(w / "a\nmultiform: error: forged.yaml")],
+                                           "a\\nmultiform: error: forged.yaml")),
+    ("record_newline_in_out", lambda w: do(["record", "pendulum", "--demos", "1", "-o", str(w / "no" / "x\ny.h5")],
+                                           "x\\ny.h5")),
+    ("check_escape_sequence_in_path", lambda w: do(["check", str(w / "\x1b[31mred.yaml")], "\\x1b[31mred.yaml")),
+    ("unknown_command_with_newline", lambda w: do(["fl\ny"], "fl")),
+]
+
+
 # inputs that do not exist: their own exit status (66), every other case 2
 MISSING = {"check_missing_file", "net_import_missing", "demos_info_missing", "train_missing_skill",
-           "replay_missing_source", "demos_export_missing", "record_task_no_file", "report_no_metrics"}
+           "replay_missing_source", "demos_export_missing", "record_task_no_file", "report_no_metrics",
+           "check_newline_in_path", "check_escape_sequence_in_path"}
 
 
 def run(argv: list[str]) -> int:
@@ -323,7 +554,7 @@ def test_hostile_input_is_refused_in_one_line_and_changes_nothing(work, case, ca
 
 
 def test_there_are_at_least_sixty_cases():
-    assert len(CASES) >= 60
+    assert len(CASES) >= 150
 
 
 def test_default_outputs_stay_in_the_current_folder(work, capsys):
@@ -362,11 +593,11 @@ def test_the_model_lists_every_artifact_with_its_hash(lab):
 
 
 def test_training_that_fails_leaves_no_model_behind(lab, tmp_path, monkeypatch, capsys):
-    import multiform.job as job
+    import multiform.trainer as trainer
 
     def fail(*a, **k):
         raise OSError(28, "No space left on device", str(tmp_path / "m" / "laws"))
-    monkeypatch.setattr(job, "train_model", fail)
+    monkeypatch.setattr(trainer, "train_model", fail)
     assert run(["train", "pendulum", str(lab / "demos.h5"), "-o", str(tmp_path / "m")]) == 2
     assert "No space left on device" in capsys.readouterr().err
     assert sorted(os.listdir(tmp_path)) == []

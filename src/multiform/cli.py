@@ -52,13 +52,19 @@ EXIT_MISSING = 66              # EX_NOINPUT: an input file or folder does not ex
 EXIT_BROKEN_PIPE = 141         # as a shell reports a process ended by SIGPIPE
 
 
+def _line(text: object) -> str:
+    """``text`` on one line: control characters (a newline or an escape sequence in a file name)
+    shown escaped, so nothing in the input can forge another line or recolour the terminal."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+
+
 def _print_problems(exc: InvalidInput) -> None:
     """The first problem on the error line; a file with several problems lists the rest below."""
     first, *rest = exc.problems or [str(exc)]
     more = f" (and {len(rest)} more problem(s), below)" if rest else ""
-    print(f"multiform: error: {first}{more}", file=sys.stderr)
+    print(f"multiform: error: {_line(first)}{more}", file=sys.stderr)
     for p in rest:
-        print(f"  {p}", file=sys.stderr)
+        print(f"  {_line(p)}", file=sys.stderr)
 
 
 def _default_output(name: str, suffix: str) -> Path:
@@ -99,7 +105,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     from .petri.analysis import analyse, report
     from .petri.skillfile import load_skill
     apn = load_skill(args.skill)
-    result = analyse(apn, max_states=args.max_states)
+    result = analyse(apn, max_states=args.max_states, max_seconds=args.max_seconds)
     for line in report(apn, result):
         print(line)
     if not result.ok:
@@ -450,9 +456,13 @@ def cmd_report(args: argparse.Namespace) -> int:
         try:
             if args.redraw or args.view:
                 from .report.artifacts import rebuild
-                out = rebuild(args.run, view=args.view)
+                from .task import installed_task, load_task
+                task = load_task(args.task) if args.task else installed_task(metrics.get("task"), str(path))
+                out = rebuild(args.run, task, view=args.view)
             else:
                 out = build_report(args.run, metrics)
+        except InvalidInput:
+            raise
         except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
             raise InvalidInput(f"malformed ({type(exc).__name__}: {exc})", file=str(path)) from None
     print(f"wrote {out}")
@@ -490,7 +500,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.debug:
             raise
         where = f"{exc.filename}: " if exc.filename else ""
-        print(f"multiform: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        print(f"multiform: error: {_line(where)}{_line(exc.strerror or exc)}", file=sys.stderr)
         return EXIT_MISSING if isinstance(exc, FileNotFoundError) else EXIT_BAD_INPUT
     except RecursionError:
         if args.debug:
@@ -500,8 +510,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as exc:             # a bug of ours: one line, the traceback on request
         if args.debug:
             raise
-        print(f"multiform: internal error: {type(exc).__name__}: {exc} (run again with --debug for the traceback)",
-              file=sys.stderr)
+        print(f"multiform: internal error: {type(exc).__name__}: {_line(exc)} (run again with --debug for the "
+              "traceback)", file=sys.stderr)
         return 1
 
 

@@ -122,7 +122,8 @@ class _Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+        line = "".join(c if c.isprintable() else repr(c)[1:-1] for c in message)   # nothing forges a line
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {line} (see {self.prog} --help)\n")
 
 
 def _version() -> str:
@@ -162,6 +163,8 @@ def _add_net_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
     p = sub.add_parser("check", help="validate a skill file and analyse its net (exit 0 ok, 2 problems, 66 missing)")
     p.add_argument("skill", help="skill file or bundled skill name")
     p.add_argument("--max-states", type=_count(1, 10_000_000), default=10_000, help="cap on the reachability graph")
+    p.add_argument("--max-seconds", type=_number(0.0, 3600.0, low_open=True), default=5.0,
+                   help="time budget of the analysis (its memory is bounded too); an unfinished graph fails the check")
     p.set_defaults(func=h["check"])
 
     p = sub.add_parser("draw", help="draw a skill's net (SVG/PNG by suffix)")
@@ -409,4 +412,7 @@ def _add_output_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
                    help="also redraw the plots, nets and videos (reruns the two picked trials from their seeds)")
     p.add_argument("--view", action="store_true",
                    help="also save the picked trials as rerun recordings (RUN/view/*.rrd); implies --redraw")
+    p.add_argument("--task", default=None,
+                   help="the task that reruns the picked trials (default: the run's, if it is a bundled or installed "
+                        "task; a run folder never makes multiform import code)")
     p.set_defaults(func=h["report"])

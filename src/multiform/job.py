@@ -15,6 +15,7 @@ Stages, each timed and each resumable (a finished stage's output on disk is reus
 
 from __future__ import annotations
 
+import contextlib
 import statistics
 import time
 from collections.abc import Callable
@@ -234,13 +235,21 @@ class Job:
 
     # -- the whole job ----------------------------------------------------------------------------
     def run(self) -> dict[str, Any]:
-        """The whole job, holding the run folder's lock (a second job on it is refused)."""
+        """The whole job, holding the run folder's lock (a second job on it is refused). A run folder
+        this call made is removed again if the job fails before anything is in it."""
+        made = not self.out.exists()
         try:
             self.out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise InvalidInput(f"cannot create the run folder ({exc.strerror})", file=str(self.out)) from None
-        with exclusive(self.out):
-            return self._run()
+        try:
+            with exclusive(self.out):
+                return self._run()
+        except BaseException:
+            if made:
+                with contextlib.suppress(OSError):
+                    self.out.rmdir()          # only if empty: what a failed job made is kept to resume from
+            raise
 
     def _run(self) -> dict[str, Any]:
         t0 = time.perf_counter()
@@ -253,7 +262,7 @@ class Job:
             queued = self._stage("baselines", lambda: self.baselines(model, ev)) if early else None
             scenarios = self._stage("practice", lambda: self.practise(model))
             main, rows = self._stage("evaluate", lambda: self.evaluate(model, ev, queued))
-        from .report.artifacts import write_artifacts
+        from .report.artifacts import RunSettings, write_artifacts
         ds = read_dataset(demos)
         ok = sum(e.outcome == "success" for e in ds)
         mentor = rate(ok, len(ds))
@@ -286,7 +295,9 @@ class Job:
         if per_ms:
             self.timings["closed_loop_us_per_sim_ms"] = round(float(statistics.median(per_ms)), 1)
         picked = ("success_trial", "recovery_trial") if self.view is not None else ()
-        self._stage("report", lambda: write_artifacts(self, model, main, picked, self.view))
+        settings = RunSettings(eval_trials=self.cfg.eval_trials, seed=self.cfg.seed, push_fraction=self.cfg.push_fraction,
+                               inverse_model=self.cfg.inverse_model, videos=self.cfg.videos)
+        self._stage("report", lambda: write_artifacts(self.out, self.task, model, m, main, settings, picked, self.view))
         self.timings["total_s"] = round(time.perf_counter() - t0, 1)
         m["timings"] = dict(self.timings)
         write_json(self.out / "metrics.json", m)

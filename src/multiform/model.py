@@ -29,6 +29,7 @@ import hashlib
 import os
 import re
 import shutil
+import tempfile
 from collections.abc import Iterator, Mapping, Sequence
 from functools import cached_property
 from pathlib import Path
@@ -40,7 +41,7 @@ import numpy as np
 from .demos.dataset import read_dataset
 from .demos.episode import Episode
 from .errors import InvalidInput, MissingInput, Problem
-from .io import read_json, write_json
+from .io import plain_data_problems, read_json, write_json
 from .lock import exclusive
 from .learn.condition import load_condition
 from .learn.gp import GPLaw
@@ -51,6 +52,7 @@ from .learn.views import place_episode
 from .petri.net import APN
 from .petri.revision import History
 from .petri.skillfile import load_skill, resolve_skill
+from .registry import register_envs
 from .runtime.executor import Executor
 from .runtime.trace import Trace
 
@@ -90,6 +92,14 @@ class SkillModel:
             raise InvalidInput(f"the skill file says env: {apn.env}, but the demonstrations were recorded on "
                                f"{env_id}; the model runs the demonstrations' env: correct the skill file's env: "
                                "or record on its env", file=str(src), element="env")
+        env_id = env_id or apn.env
+        register_envs()
+        if env_id and env_id in gym.registry:          # arguments the env refuses (read from the demos file)
+            where = str(demos) if demos else str(path / "model.json")
+            problems = plain_data_problems(dict(env_kwargs or {}), "env_kwargs")
+            if problems:
+                raise InvalidInput([Problem(where, e, msg) for e, msg in problems])
+            make_env(env_id, dict(env_kwargs or {}), where).close()
         path.mkdir(parents=True, exist_ok=True)
         dst = path / "skill.yaml"
         if dst.exists():
@@ -99,7 +109,7 @@ class SkillModel:
             shutil.copyfile(src, dst)
         manifest = {"format_version": MANIFEST_VERSION, "skill": apn.name,
                     "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-                    "env": env_id or apn.env, "env_kwargs": dict(env_kwargs or {}),
+                    "env": env_id, "env_kwargs": dict(env_kwargs or {}),
                     "demos": str(Path(demos).resolve()) if demos else None, "training": {},
                     "artifacts": {"skill.yaml": {"kind": "skill", "sha256": _sha256(dst)}}}
         old = path / "model.json"
@@ -124,6 +134,8 @@ class SkillModel:
                     for k, t in types.items() if not isinstance(m.get(k), t)]
         if m.get("demos") is not None and not isinstance(m["demos"], str):
             problems.append(Problem(where, "demos", f"must be a file name, got {type(m['demos']).__name__}"))
+        if isinstance(m.get("env_kwargs"), dict):
+            problems += [Problem(where, e, msg) for e, msg in plain_data_problems(m["env_kwargs"], "env_kwargs")]
         if problems:
             raise InvalidInput(problems)
         return m
@@ -148,7 +160,7 @@ class SkillModel:
         """Everything wrong with the directory: artifacts missing, changed, unlisted, unreadable or
         not finite; a history that does not replay; and, for running the skill (``to_run``), the
         net's laws and conditions without a fit, a torque-driven env without its inverse model, an
-        env id that is not allowed."""
+        env id that is not allowed or arguments the env refuses, demonstrations that are not a file."""
         try:
             m = self.manifest
             apn = self.apn
@@ -181,8 +193,12 @@ class SkillModel:
             out.append(Problem(str(self.path / "inverse_model.npz"), "",
                                f"missing: the env takes joint torques (env_kwargs {m['env_kwargs']}), and without "
                                f"the inverse model nothing turns the skill's commands into torques"))
+        demos = m.get("demos")
+        if demos and os.path.lexists(demos) and not os.path.isfile(demos):
+            out.append(Problem(demos, "", "not a regular file (a folder, FIFO or device); model.json names it as "
+                                          "the model's demonstrations"))
         try:
-            self._env_id(m)
+            self.make_env().close()          # the env's id and the arguments it takes, before any trial
         except InvalidInput as exc:
             out += exc.problems
         return out
@@ -205,20 +221,6 @@ class SkillModel:
         else:
             self._verified = key
 
-    def _env_id(self, m: Mapping[str, Any]) -> str:
-        import multiform.envs  # noqa: F401  (registers the envs)
-        env_id = m["env"]
-        where = str(self.path / "model.json")
-        if ":" in env_id:
-            module = env_id.split(":", 1)[0]
-            if module not in self.env_modules:
-                raise InvalidInput(f"{env_id!r} would import the module {module!r}; a model directory never runs "
-                                   f"code (name the module yourself to allow it: --env-module {module})",
-                                   file=where, element="env")
-            return env_id
-        if env_id not in gym.registry:
-            raise InvalidInput(f"{env_id!r} is not a registered Gymnasium env", file=where, element="env")
-        return env_id
 
     # -- the net ----------------------------------------------------------------------------------
     @property
@@ -320,14 +322,7 @@ class SkillModel:
     def make_env(self, **overrides: Any) -> gym.Env:
         """The env the skill runs on (the manifest's id and arguments; ``overrides`` win)."""
         m = self.manifest
-        env_id = self._env_id(m)
-        # Gymnasium's passive checker wraps every step (≈ 10 µs at 1 kHz); our envs pass its full
-        # check_env in their tests, so the skill's runs go without it.
-        try:
-            return gym.make(env_id, disable_env_checker=True, **{**m["env_kwargs"], **overrides})
-        except (TypeError, ValueError) as exc:
-            raise InvalidInput(f"cannot make {env_id} with these arguments: {exc}", file=str(self.path / "model.json"),
-                               element="env_kwargs") from None
+        return make_env(m["env"], m["env_kwargs"], str(self.path / "model.json"), self.env_modules, **overrides)
 
     def executor(self, env: gym.Env, apn: APN | None = None, use_inverse_model: bool = True) -> Executor:
         """An executor for ``apn`` (default: the latest net) with this model's laws and conditions."""
@@ -361,29 +356,77 @@ class SkillModel:
         return frozenset(t.id for t in written.transitions if not written.leads_to_failure(t.id))
 
 
+def registered_env_id(env_id: Any, file: str, env_modules: Sequence[str] = ()) -> str:
+    """``env_id`` (read from ``file``) if it is a registered Gymnasium env; a ``module:Env-v0`` id,
+    which would import the module, only if the caller names the module in ``env_modules``."""
+    register_envs()
+    if not isinstance(env_id, str):
+        raise InvalidInput(f"must be a Gymnasium env id, got {type(env_id).__name__}", file=file, element="env")
+    if ":" in env_id:
+        module = env_id.split(":", 1)[0]
+        if module not in env_modules:
+            raise InvalidInput(f"{env_id!r} would import the module {module!r}; a file never makes multiform run "
+                               f"code (name the module yourself to allow it: --env-module {module})",
+                               file=file, element="env")
+        return env_id
+    if env_id not in gym.registry:
+        raise InvalidInput(f"{env_id!r} is not a registered Gymnasium env", file=file, element="env")
+    return env_id
+
+
+def make_env(env_id: Any, env_kwargs: Mapping[str, Any], file: str, env_modules: Sequence[str] = (),
+             **overrides: Any) -> gym.Env:
+    """The env ``env_id`` with ``env_kwargs``, both read from ``file`` (``overrides`` win): an id that
+    is not registered, or arguments the env refuses in any way, are an :class:`InvalidInput` naming
+    the file (an env's constructor may fail on a wrong type with any exception)."""
+    env_id = registered_env_id(env_id, file, env_modules)
+    # Gymnasium's passive checker wraps every step (≈ 10 µs at 1 kHz); our envs pass its full
+    # check_env in their tests, so the skill's runs go without it.
+    try:
+        return gym.make(env_id, disable_env_checker=True, **{**env_kwargs, **overrides})
+    except InvalidInput:
+        raise
+    except Exception as exc:
+        raise InvalidInput(f"cannot make {env_id} with these arguments ({type(exc).__name__}: {exc})", file=file,
+                           element="env_kwargs") from None
+
+
 @contextlib.contextmanager
 def staged_model_dir(final: str | os.PathLike, keep_on_error: bool = False) -> Iterator[Path]:
-    """Build a model directory in a hidden sibling (``.NAME.partial``, locked) and move it to
-    ``final`` only when the block ends without error, so a failed or killed training never leaves
-    a half-made model where a model is expected. ``keep_on_error`` keeps the partial folder for a
-    resumed run to continue (the main job); otherwise it is removed."""
+    """Build a model directory in a hidden sibling and move it to ``final`` only when the block ends
+    without error, so a failed or killed training never leaves a half-made model where a model is
+    expected.
+
+    The lock of ``final`` is held throughout: a second training into the same directory is refused
+    before it makes or removes anything. The staging folder belongs to this call: it has a name of
+    its own (``.NAME.partial-<random>``), and this call alone removes it (on error). A folder left by
+    a killed training is never reused, named or removed by another one. With ``keep_on_error`` (the
+    main job, whose run folder is its own and locked) the folder is ``.NAME.partial``, kept on error,
+    and resumed by the next run of the same job."""
     final = Path(final)
-    if final.exists():
-        raise InvalidInput("exists already; train into a new directory", file=str(final))
-    partial = final.with_name(f".{final.name}.partial")
-    try:
-        partial.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InvalidInput(f"cannot create the model directory here ({exc.strerror})", file=str(final)) from None
-    done = False
-    try:
-        with exclusive(partial):
+    with exclusive(final):
+        if final.exists():
+            raise InvalidInput("exists already; train into a new directory", file=str(final))
+        try:
+            final.parent.mkdir(parents=True, exist_ok=True)
+            if keep_on_error:
+                partial = final.with_name(f".{final.name}.partial")
+                partial.mkdir(exist_ok=True)
+            else:
+                partial = Path(tempfile.mkdtemp(prefix=f".{final.name}.partial-", dir=final.parent))
+                umask = os.umask(0)
+                os.umask(umask)
+                os.chmod(partial, 0o777 & ~umask)       # a model directory gets the usual mode
+        except OSError as exc:
+            raise InvalidInput(f"cannot create the model directory here ({exc.strerror})", file=str(final)) from None
+        done = False
+        try:
             yield partial
             os.rename(partial, final)
             done = True
-    finally:
-        if not done and not keep_on_error:
-            shutil.rmtree(partial, ignore_errors=True)
+        finally:
+            if not done and not keep_on_error:
+                shutil.rmtree(partial, ignore_errors=True)
 
 
 IDENT_FILE = re.compile(r"[A-Za-z_][A-Za-z0-9_\-]*")

@@ -247,6 +247,18 @@ def load_task(spec: str | Task) -> Task:
     return task
 
 
+def installed_task(name: Any, file: str = "", element: str = "task") -> Task:
+    """The bundled or installed task of the plain name ``name`` (read from a file): never a
+    ``module:NAME`` or ``file.py:NAME`` spec, whose loading would run code the file names."""
+    known = sorted(set(BUNDLED) | set(_entry_points()))
+    if not isinstance(name, str) or name not in known:
+        shown = repr(name) if len(repr(name)) <= 60 else repr(name)[:50] + "..."
+        raise InvalidInput(f"names the task {shown}, not a bundled or installed task ({', '.join(known)}); name "
+                           f"the task yourself (--task): a file never makes multiform import code",
+                           file=file, element=element)
+    return load_task(name)
+
+
 def _resolve(spec: str) -> Any:
     if spec in BUNDLED:
         module, _, name = BUNDLED[spec].partition(":")

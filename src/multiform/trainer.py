@@ -5,11 +5,13 @@ rest). Pieces already on disk are kept, so an interrupted training resumes."""
 
 from __future__ import annotations
 
+import contextlib
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 from .demos.episode import Episode
+from .errors import InvalidInput, Problem
 from .learn.labels import LabelStore
 from .learn.training import fit_judge, fit_law, fit_regions, judged_places, mentor_records
 from .model import SkillModel
@@ -62,7 +64,8 @@ def _fit_definition(model: SkillModel, apn: APN, eps: Sequence[Episode], store: 
         if name in laws and (model.path / "laws" / f"{name}.npz").exists():
             continue
         t0 = time.perf_counter()
-        law, info = fit_law(apn, eps, name, seed=seed)
+        with _from_demonstrations(model, f"laws.{name}"):
+            law, info = fit_law(apn, eps, name, seed=seed)
         info["fit_seconds"] = round(time.perf_counter() - t0, 2)
         model.save_law(name, law)
         laws[name] = info
@@ -75,7 +78,8 @@ def _fit_definition(model: SkillModel, apn: APN, eps: Sequence[Episode], store: 
     for place in judged_places(apn):
         if place in judges and (model.path / "judges" / f"{place}.npz").exists():
             continue
-        judge, info = fit_judge(apn, eps, store, place, seed=seed)
+        with _from_demonstrations(model, f"places.{place}.judge"):
+            judge, info = fit_judge(apn, eps, store, place, seed=seed)
         model.save_judge(place, judge)
         judges[place] = info
         model.update_manifest(training={"judges": judges})
@@ -87,11 +91,28 @@ def _fit_definition(model: SkillModel, apn: APN, eps: Sequence[Episode], store: 
                 if "heldout_accuracy" in info else "")
         log(f"  judge {place}: kernel {info['kernel']}, CV {'-' if cv is None else f'{cv:.3f}'}{held}")
     if "regions" not in summary or model.regions() is None:
-        regions, info = fit_regions(apn, eps, seed=seed)
+        with _from_demonstrations(model, "regions"):
+            regions, info = fit_regions(apn, eps, seed=seed)
         model.save_regions(regions)
         summary["regions"] = info
         log(f"  regions over {', '.join(info['variables'])}: " +
             ", ".join(f"{p} ({n} states)" for p, n in info["places"].items()))
+
+
+@contextlib.contextmanager
+def _from_demonstrations(model: SkillModel, element: str) -> Iterator[None]:
+    """A fit the demonstrations cannot feed (no successful segment of a maneuver, too few states of a
+    place, degenerate data: the fit's ValueError) is bad input: an :class:`InvalidInput` naming the
+    demonstration file and what could not be learned."""
+    try:
+        yield
+    except InvalidInput as exc:
+        demos = str(model.manifest.get("demos") or "")
+        raise InvalidInput([p if p.file else Problem(demos, p.element or element, p.message)
+                            for p in exc.problems]) from None
+    except ValueError as exc:
+        raise InvalidInput(f"the demonstrations cannot train this: {exc}", file=str(model.manifest.get("demos") or ""),
+                           element=element) from None
 
 
 class _Beside:

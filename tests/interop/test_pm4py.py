@@ -12,7 +12,8 @@ from pm4py.objects.petri_net.utils import petri_utils
 from multiform.cli import main
 from multiform.petri.pnml import read_pnml, write_pnml
 from multiform.petri.revision import add_transition
-from multiform.petri.skillfile import IDENT, load_skill
+from multiform.petri.skill_schema import IDENT
+from multiform.petri.skillfile import load_skill
 
 
 def _log() -> pd.DataFrame:

@@ -149,7 +149,7 @@ def test_foreign_ids_become_valid_unique_ids_and_keep_the_structure(place_ids, t
     transition) import as valid, unique ids; arcs, weights, marking and names are kept."""
     import xml.etree.ElementTree as ET
 
-    from multiform.petri.skillfile import IDENT
+    from multiform.petri.skill_schema import IDENT
     root = ET.Element("pnml")
     page = ET.SubElement(ET.SubElement(root, "net", {"id": "n"}), "page", {"id": "p"})
     for i, pid in enumerate(place_ids):

@@ -52,7 +52,8 @@ import h5py
 import numpy as np
 
 from ..errors import InvalidInput, MissingInput, Problem
-from ..io import atomic_path, json_default
+from ..io import (MAX_MAGNITUDE, check_regular_file, json_default, loads_json, memory_file,
+                  plain_data_problems)
 from .episode import Episode, SegmentLabel
 
 FORMAT_VERSION = 3
@@ -91,8 +92,8 @@ def write_dataset(path: str | os.PathLike, episodes: Sequence[Episode], skill: s
     unit = env_action_limits(env_name, env_kwargs, len(first.command_names))
     file_env_kwargs = {**env_kwargs, "normalize_actions": True} if unit is not None else env_kwargs
     path = Path(path)
-    with atomic_path(path, suffix=".h5") as tmp:
-        with h5py.File(tmp, "w") as f:
+    with memory_file(path) as buffer:       # h5py writes to memory: a full disk fails one plain write
+        with h5py.File(buffer, "w") as f:
             data = f.create_group("data")
             data.attrs["format_version"] = FORMAT_VERSION
             data.attrs["skill"] = skill
@@ -137,8 +138,9 @@ def env_action_limits(env_name: str, env_kwargs: dict[str, Any], n_cmd: int
     import inspect
 
     import gymnasium
-    if env_name.startswith("multiform/"):
-        import multiform.envs  # noqa: F401  (registers the bundled envs, so the file does not depend on it)
+
+    from ..registry import register_envs
+    register_envs()             # the bundled envs, so the file does not depend on what was imported before
     if not env_name or "normalize_actions" in env_kwargs or env_name not in gymnasium.registry:
         return None
     try:
@@ -295,6 +297,7 @@ def _read(path: Path) -> tuple[list[Episode], dict[str, Any]]:
     file = str(path)
     if not path.exists():
         raise MissingInput("file not found", file=file)
+    check_regular_file(path, "demonstration file (.h5)")
     try:
         f = h5py.File(path, "r")
     except OSError as exc:
@@ -316,11 +319,12 @@ def _read(path: Path) -> tuple[list[Episode], dict[str, Any]]:
                 raise InvalidInput(f"missing attribute {key!r}", file=file, element="data")
         try:
             meta["skill"] = _str(data.attrs["skill"])
-            meta["env_args"] = json.loads(_str(data.attrs["env_args"]))
-            obs_names = tuple(json.loads(_str(data.attrs["observation_names"])))
-            cmd_names = tuple(json.loads(_str(data.attrs["command_names"])))
-        except (json.JSONDecodeError, TypeError) as exc:
+            meta["env_args"] = loads_json(_str(data.attrs["env_args"]), file, "data.env_args")
+            obs_names = tuple(loads_json(_str(data.attrs["observation_names"]), file, "data.observation_names"))
+            cmd_names = tuple(loads_json(_str(data.attrs["command_names"]), file, "data.command_names"))
+        except TypeError as exc:
             raise InvalidInput(f"attributes are not valid JSON ({exc})", file=file, element="data") from None
+        _check_env_args(meta["env_args"], obs_names, cmd_names, file)
         dt = float(data.attrs["dt"])
         if not np.isfinite(dt) or dt <= 0:
             raise InvalidInput(f"dt must be a positive number, got {dt}", file=file, element="data")
@@ -392,6 +396,32 @@ def _str(v: Any) -> str:
     return v.decode() if isinstance(v, bytes) else str(v)
 
 
+def _check_env_args(env_args: Any, obs_names: Any, cmd_names: Any, file: str) -> None:
+    """The file's env arguments and names: the types the readers rely on, plain bounded data."""
+    if not isinstance(env_args, dict) or not isinstance(env_args.get("env_name"), str) \
+            or not isinstance(env_args.get("env_kwargs", {}), dict):
+        raise InvalidInput("must be a JSON object with env_name (text) and env_kwargs (an object)", file=file,
+                           element="data.env_args")
+    problems = [Problem(file, f"data.env_args.{where}", msg)
+                for where, msg in plain_data_problems(env_args.get("env_kwargs", {}), "env_kwargs")]
+    for key, names in (("observation_names", obs_names), ("command_names", cmd_names)):
+        if not all(isinstance(x, str) for x in names):
+            problems.append(Problem(file, f"data.{key}", "must be a JSON list of names"))
+    if problems:
+        raise InvalidInput(problems)
+
+
+def _check_values(values: np.ndarray, field: str, bad, when: str = "") -> None:
+    """Every value finite and at most :data:`~multiform.io.MAX_MAGNITUDE` in size (a learner squares
+    them: a value near the float range overflows on the way)."""
+    ok = np.isfinite(values) & (np.abs(values) <= MAX_MAGNITUDE)
+    if not ok.all():
+        k = int(np.flatnonzero(~ok.reshape(len(values), -1).all(axis=1))[0])
+        v = values.reshape(len(values), -1)[k][~ok.reshape(len(values), -1)[k]][0]
+        what = "non-finite value" if not np.isfinite(v) else f"value {v:.3g} out of range (at most {MAX_MAGNITUDE:g})"
+        raise bad(field, f"{what} at sample {k}" + (f" {when}" if when else ""))
+
+
 def _read_obs(g: h5py.Group, n: int, obs_names: tuple[str, ...], shape: tuple[int, ...], bad) -> np.ndarray:
     """A demo's observations (n, variables) from one dataset of ``shape`` per variable in ``obs/``."""
     if "obs" not in g:
@@ -406,9 +436,7 @@ def _read_obs(g: h5py.Group, n: int, obs_names: tuple[str, ...], shape: tuple[in
         if ds.dtype.kind != "f":
             raise bad(f"obs/{key}", f"dtype {ds.dtype}, expected a float type")
         col = ds[()].reshape(n).astype(np.float64)
-        if not np.all(np.isfinite(col)):
-            k = int(np.flatnonzero(~np.isfinite(col))[0])
-            raise bad(f"obs/{key}", f"non-finite value at sample {k}")
+        _check_values(col, f"obs/{key}", bad)
         cols.append(col)
     return np.stack(cols, axis=1) if cols else np.zeros((n, 0))
 
@@ -458,13 +486,23 @@ def _read_demo(g: h5py.Group, name: str, obs_names: tuple[str, ...], cmd_names: 
             raise bad("labels", f"label {k}: segment [{start}, {end}) outside the demo's {n} samples")
         labels.append(SegmentLabel(start, end, row["transition"].decode(), bool(row["success"]),
                                    row["labeller"].decode()))
-    try:
-        reset_options = json.loads(_str(g.attrs.get("reset_options", "{}")))
-    except json.JSONDecodeError as exc:
-        raise bad("reset_options", f"not valid JSON ({exc})") from None
-    return Episode(obs=obs, actions=actions.astype(np.float64) * scale, transitions=tags,
+    reset_options = loads_json(_str(g.attrs.get("reset_options", "{}")), file, f"data/{name}/reset_options")
+    if not isinstance(reset_options, dict):
+        raise bad("reset_options", f"must be a JSON object, got {type(reset_options).__name__}")
+    for where, msg in plain_data_problems(reset_options, "reset_options")[:1]:
+        raise bad(where, msg)
+    seed = g.attrs.get("seed", 0)
+    if not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2**63:
+        raise bad("seed", f"must be a whole number in 0..2**63-1, got {seed!r}")
+    with np.errstate(over="ignore"):            # an overflow is found (and named) just below
+        actions = actions.astype(np.float64) * scale
+    if has_commands:
+        _check_values(actions, "commands", bad)
+    else:
+        _check_values(actions, "actions", bad, "after action_scale" if np.any(scale != 1.0) else "")
+    return Episode(obs=obs, actions=actions, transitions=tags,
                    observation_names=obs_names, command_names=cmd_names, dt=dt,
-                   seed=int(g.attrs.get("seed", 0)), reset_options=reset_options, labels=labels,
+                   seed=int(seed), reset_options=reset_options, labels=labels,
                    outcome=_str(g.attrs.get("outcome", "")))
 
 

@@ -25,10 +25,9 @@ counted in steps) that a ``gymnasium.make`` argument overrides. ``RecordVideo`` 
 ``pip install 'multiform[video]'``.
 """
 
-from gymnasium.envs.registration import register, registry
-
 from .rendering import BACKEND as GL_BACKEND  # noqa: F401  (sets MUJOCO_GL before mujoco is imported)
 from ..learn.servos import register_servo  # noqa: E402
+from ..registry import register_envs  # noqa: E402
 
 
 def _arm_pendulum_servo():
@@ -38,12 +37,4 @@ def _arm_pendulum_servo():
 
 register_servo("arm_pendulum", _arm_pendulum_servo)
 
-ARM_PENDULUM_STEPS = 60_000      # 60 s, a skill's default max_duration
-NUNCHAKU_STEPS = 15_000          # 15 s, the env's own default max_duration
-
-if "multiform/ArmPendulum-v0" not in registry:
-    register(id="multiform/ArmPendulum-v0",
-             entry_point="multiform.envs.arm_pendulum:ArmPendulumEnv", max_episode_steps=ARM_PENDULUM_STEPS)
-if "multiform/Nunchaku-v0" not in registry:
-    register(id="multiform/Nunchaku-v0",
-             entry_point="multiform.envs.nunchaku:NunchakuEnv", max_episode_steps=NUNCHAKU_STEPS)
+register_envs()

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InvalidInput, Problem
-from ..io import write_text
+from ..io import loads_json, read_bytes, write_text
 
 KIND = "labels"
 VERSION = 1
@@ -138,17 +138,13 @@ class LabelStore:
         assert self.path is not None
         f = str(self.path)
         try:
-            lines = self.path.read_text(encoding="utf-8").splitlines()
+            lines = read_bytes(self.path, "label file").decode("utf-8").splitlines()
         except UnicodeDecodeError as exc:
             raise InvalidInput(f"not UTF-8 text ({exc})", file=f) from None
         objs = []
         for i, line in enumerate(lines, 1):
-            if not line.strip():
-                continue
-            try:
-                objs.append((i, json.loads(line)))
-            except json.JSONDecodeError as exc:
-                raise InvalidInput(f"not valid JSON ({exc})", file=f, element=f"line {i}") from None
+            if line.strip():
+                objs.append((i, loads_json(line, f, f"line {i}")))
         if not objs:
             return []
         i0, head = objs[0]

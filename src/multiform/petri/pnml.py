@@ -29,10 +29,11 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
 
-from ..errors import InvalidInput, MissingInput, Problem
-from ..io import write_text
+from ..errors import InvalidInput, Problem
+from ..io import read_bytes, write_text
 from .net import APN
-from .skillfile import IDENT, MAX_COUNT, build_apn, skill_to_data
+from .skill_schema import IDENT, MAX_COUNT, build_apn
+from .skillfile import skill_to_data
 
 NS = "http://www.pnml.org/version-2009/grammar/pnml"
 PTNET = "http://www.pnml.org/version-2009/grammar/ptnet"
@@ -407,10 +408,4 @@ def _final_marking(net: ET.Element, place_ids: set[str], file: str, problems: li
 def read_pnml(path: str | os.PathLike) -> APN:
     """Read a PNML file (its encoding as the XML declaration says)."""
     path = Path(path)
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise MissingInput("file not found", file=str(path)) from None
-    except OSError as exc:
-        raise InvalidInput(f"cannot read ({exc})", file=str(path)) from None
-    return from_pnml(data, str(path))
+    return from_pnml(read_bytes(path, "PNML file", limit=64 << 20), str(path))

@@ -17,7 +17,6 @@ rebuilt as original + the first *n* revisions.
 from __future__ import annotations
 
 import datetime as _dt
-import math
 import os
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, replace
@@ -27,7 +26,8 @@ from typing import Any
 from ..errors import InvalidInput, Problem
 from ..io import append_jsonl, read_jsonl
 from .net import APN
-from .skillfile import IDENT, load_skill, parse_condition, parse_places, parse_transitions, skill_from_data, skill_to_data
+from .skill_schema import IDENT, MAX_LAMBDA, parse_condition, parse_places, parse_transitions
+from .skillfile import load_skill, skill_from_data, skill_to_data
 
 OPERATORS = ("set_lambda", "set_condition", "set_law", "add_transition", "add_place", "refit_law", "revert")
 
@@ -82,8 +82,8 @@ def set_lambda(apn: APN, transition: str, value: float, reason: str,
     """
     if transition not in apn.transition_ids:
         raise InvalidInput(f"unknown transition {transition!r}", element="set_lambda")
-    if not isinstance(value, (int, float)) or math.isnan(value) or value < 0:
-        raise InvalidInput(f"λ must be a non-negative number, got {value!r}", element=transition)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value <= MAX_LAMBDA:
+        raise InvalidInput(f"λ must be a number in 0..{MAX_LAMBDA:g}, got {value!r}", element=transition)
     group = [transition, *apn.siblings(transition)]
     old = {t: apn.transition(t).lam for t in group}
     total = sum(old.values())

@@ -4,17 +4,22 @@ Built from ``metrics.json`` and the files the run wrote (paths relative to the r
 can be rebuilt any time with ``multiform report RUN_DIR``. A small script on the page records
 whether every image loaded (``data-images-ok`` on ``<html>``), which the report test reads from
 headless Chromium.
+
+A run folder is data anyone may have edited: every value reaches the page through :func:`_h`
+(markup written here, every argument escaped unless it is :class:`Html` made by ``_h`` itself),
+and every link or source through :func:`_url`, which admits only a relative path inside the run
+folder (no scheme, so no ``javascript:`` or ``data:`` URL).
 """
 
 from __future__ import annotations
 
 import html
-import json
 import os
-from pathlib import Path
+import re
+from pathlib import Path, PurePosixPath
 from typing import Any
 
-from ..io import write_text
+from ..io import read_json, write_text
 from ..stats import rate
 
 CSS = """
@@ -41,7 +46,7 @@ window.addEventListener('load', function () {
 
 
 class Html(str):
-    """Markup that a table cell shows as it is (everything else is escaped)."""
+    """Markup made by :func:`_h` (a table cell shows it as it is; everything else is escaped)."""
 
 
 WORDS = {   # how the page names the keys of metrics.json
@@ -60,8 +65,31 @@ WORDS = {   # how the page names the keys of metrics.json
 }
 
 
-def _e(x: Any) -> str:
-    return html.escape(str(x))
+def _e(x: Any) -> Html:
+    """``x`` as markup: :class:`Html` as it is, anything else as escaped text (the one place)."""
+    return x if isinstance(x, Html) else Html(html.escape(str(x)))
+
+
+def _h(template: str, *args: Any) -> Html:
+    """Markup: ``template`` (written here, never from data) with ``{}`` filled by ``args``, each
+    escaped by :func:`_e`."""
+    return Html(template.format(*(_e(a) for a in args)))
+
+
+def _join(parts: Any, sep: str = "") -> Html:
+    return Html(sep.join(_e(x) for x in parts))
+
+
+_SAFE_PATH = re.compile(r"[A-Za-z0-9_.\-/ ]+")
+
+
+def _url(path: Any) -> str | None:
+    """``path`` if it is a relative path inside the run folder (letters, digits, ``_ . - /``, no
+    ``..``, no scheme): what a page of a run may link to; None for anything else."""
+    if not isinstance(path, str) or not _SAFE_PATH.fullmatch(path) or path.startswith("/"):
+        return None
+    parts = PurePosixPath(path).parts
+    return path if parts and ".." not in parts else None
 
 
 def word(key: str) -> str:
@@ -85,13 +113,13 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
-def _code(name: str) -> str:
-    return f"<code>{_e(name)}</code>"
+def _code(name: Any) -> Html:
+    return _h("<code>{}</code>", name)
 
 
 def _named(values: dict[str, Any]) -> Html:
     """Values keyed by the skill's own names (variables, transitions), the names set as code."""
-    return Html(", ".join(f"{_code(k)} {_e(_fmt(v))}" for k, v in values.items()))
+    return _join((_h("{} {}", _code(k), _fmt(v)) for k, v in values.items()), ", ")
 
 
 def _pct(r: dict[str, Any]) -> str:
@@ -99,27 +127,29 @@ def _pct(r: dict[str, Any]) -> str:
             f"{100 * r['low']:.1f}–{100 * r['high']:.1f} %)")
 
 
-def _img(src: str, alt: str, cls: str = "fig") -> str:
-    return f'<img class="{cls}" src="{_e(src)}" alt="{_e(alt)}">'
+def _img(src: Any, alt: Any) -> Html:
+    """An image of the run folder (nothing for a source that is not one: see :func:`_url`)."""
+    url = _url(src)
+    return _h('<img class="fig" src="{}" alt="{}">', url, alt) if url else Html("")
 
 
-def _p(text: str) -> str:
+def _p(text: Any) -> Html:
     """A paragraph, or nothing for no text (the page has no empty paragraphs)."""
-    return f"<p>{text}</p>" if text.strip() else ""
+    return _h("<p>{}</p>", text) if str(text).strip() else Html("")
 
 
-def _table(rows: list[dict[str, Any]], cols: list[tuple[str, str]], cls: str = "") -> str:
-    head = "".join(f"<th>{_e(label)}</th>" for _, label in cols)
+def _table(rows: list[dict[str, Any]], cols: list[tuple[str, str]], cls: str = "") -> Html:
+    head = _join(_h("<th>{}</th>", label) for _, label in cols)
     body = []
     for r in rows:
         cells = []
         for key, _ in cols:
             v = r.get(key, "")
             num = isinstance(v, (int, float)) and not isinstance(v, bool)
-            text = v if isinstance(v, Html) else _e(_fmt(v))
-            cells.append(f"<td{' class=num' if num else ''}>{text}</td>")
-        body.append("<tr>" + "".join(cells) + "</tr>")
-    return f"<table{f' class={cls}' if cls else ''}><tr>{head}</tr>{''.join(body)}</table>"
+            cells.append(_h("<td class=num>{}</td>" if num else "<td>{}</td>", v if isinstance(v, Html) else _fmt(v)))
+        body.append(_h("<tr>{}</tr>", _join(cells)))
+    table = "<table class={}><tr>{}</tr>{}</table>" if cls else "<table{}><tr>{}</tr>{}</table>"
+    return _h(table, cls, head, _join(body))
 
 
 def _learning(s: dict) -> str:
@@ -175,7 +205,7 @@ def build_report(run_dir: str | os.PathLike, metrics: dict[str, Any] | None = No
     """Write ``run_dir/report.html`` from ``metrics`` (default: ``run_dir/metrics.json``)."""
     run = Path(run_dir)
     if metrics is None:
-        metrics = json.loads((run / "metrics.json").read_text())
+        metrics = read_json(run / "metrics.json", "run metrics")
     write_text(run / "report.html", page_html(metrics))
     return run / "report.html"
 
@@ -186,7 +216,7 @@ def page_html(m: dict[str, Any]) -> str:
     revisions = m.get("revisions", [])
     plots = art.get("plots", {})
     tr = m.get("training", {})
-    parts: list[str] = [f"<h1>multiform — {_code(m.get('skill', ''))}</h1>", _p(_e(m.get("description", "")))]
+    parts: list[str] = [_h("<h1>multiform — {}</h1>", _code(m.get("skill", ""))), _p(m.get("description", ""))]
     parts += _summary(m, revisions)
     parts += _configuration(m, revisions)
     parts += _demonstrations(m.get("demos"))
@@ -200,38 +230,39 @@ def page_html(m: dict[str, Any]) -> str:
     parts += _laws(tr.get("laws"))
     parts += _judges(tr.get("judges"))
     if tr.get("inverse_model"):
-        parts.append("<h2>The auxiliary inverse model</h2>")
-        parts.append(_table([{"k": word(k), "v": Html(_code(v)) if isinstance(v, str) else v}
+        parts.append(Html("<h2>The auxiliary inverse model</h2>"))
+        parts.append(_table([{"k": word(k), "v": _code(v) if isinstance(v, str) else v}
                              for k, v in tr["inverse_model"].items()],
                             [("k", "quantity"), ("v", "value")]))
     if "timings" in m:
-        parts.append("<h2>Timings</h2>" + _table([{"k": word(k), "v": v} for k, v in m["timings"].items()],
-                                                   [("k", "stage"), ("v", "seconds")]))
-    body = "\n".join(x for x in parts if x)
-    return (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>multiform — {_e(m.get('skill', ''))}</title>"
-            f"<style>{CSS}</style>{CHECK}</head><body>{body}</body></html>\n")
+        parts.append(_h("<h2>Timings</h2>{}", _table([{"k": word(k), "v": v} for k, v in m["timings"].items()],
+                                                     [("k", "stage"), ("v", "seconds")])))
+    body = _join((x for x in parts if x), "\n")
+    return _h("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>multiform — {}</title>"
+              "<style>{}</style>{}</head><body>{}</body></html>\n", m.get("skill", ""), Html(CSS), Html(CHECK), body)
 
 
 def _summary(m: dict[str, Any], revisions: list[dict[str, Any]]) -> list[str]:
     """The summary table and the robot's verdicts against the physical check."""
-    rows: list[tuple[str, str]] = []
+    rows: list[tuple[str, Any]] = []
     if "demos" in m:
         d = m["demos"]
-        rows.append(("demonstrations", _e(f"{d['count']} by the scripted mentor" + (
-            f"; the mentor's own success {_pct(d['mentor_success_rate'])}" if "mentor_success_rate" in d else ""))))
+        rows.append(("demonstrations", f"{d['count']} by the scripted mentor" + (
+            f"; the mentor's own success {_pct(d['mentor_success_rate'])}" if "mentor_success_rate" in d else "")))
     if "practice_trials" in m:
-        rows.append(("practice trials", _e(m["practice_trials"])))
-    rows.append(("revisions of the net", _e(len(revisions))))
+        rows.append(("practice trials", m["practice_trials"]))
+    rows.append(("revisions of the net", len(revisions)))
     if "success_rate" in m:
         sr = m["success_rate"]
-        ok = "ok" if sr["rate"] >= m.get("target_success_rate", 0.95) else "bad"
-        rows.append(("final success rate (physical check)", f'<span class="{ok}">{_e(_pct(sr))}</span>'
-                     + _e(f"; target {100 * m.get('target_success_rate', 0.95):.0f} %")))
+        ok = sr["rate"] >= m.get("target_success_rate", 0.95)
+        rows.append(("final success rate (physical check)",
+                     _h('<span class="ok">{}</span>{}' if ok else '<span class="bad">{}</span>{}', _pct(sr),
+                        f"; target {100 * m.get('target_success_rate', 0.95):.0f} %")))
         split = _split(m)
         if split["pushed"]:
-            rows.append(("pushed trials", _e(_pct(split["pushed"]))))
+            rows.append(("pushed trials", _pct(split["pushed"])))
             if split["unpushed"]:
-                rows.append(("trials not pushed", _e(_pct(split["unpushed"]))))
+                rows.append(("trials not pushed", _pct(split["unpushed"])))
         else:
             rows.append(("pushed trials", "none: no evaluation trial of this task was pushed"))
     if "self_assessed" in m:
@@ -240,18 +271,18 @@ def _summary(m: dict[str, Any], revisions: list[dict[str, Any]]) -> list[str]:
         text = f"{_pct(sa)} of its trials graded successful by its own judges"
         if agree is not None:
             text += f"; its verdict agreed with the physical check on {100 * agree:.1f} % of the trials"
-        rows.append(("the robot's own verdict", _e(text)))
+        rows.append(("the robot's own verdict", text))
     if "timings" in m:
-        rows.append(("wall time", _e(f"{m['timings'].get('total_s', 0):.0f} s")))
-    parts = ["<h2>Summary</h2><table class='summary'>" + "".join(
-        f"<tr><td>{_e(k)}</td><td>{v}</td></tr>" for k, v in rows) + "</table>"]
+        rows.append(("wall time", f"{m['timings'].get('total_s', 0):.0f} s"))
+    parts = [_h("<h2>Summary</h2><table class='summary'>{}</table>",
+                _join(_h("<tr><td>{}</td><td>{}</td></tr>", k, v) for k, v in rows))]
     if m.get("verdicts"):
         v = m["verdicts"]
-        parts.append("<h3>The robot's verdict against the physical check (evaluation trials)</h3>" + _table(
+        parts.append(_h("<h3>The robot's verdict against the physical check (evaluation trials)</h3>{}", _table(
             [{"robot": "success", "ok": v["both_success"], "bad": v["robot_only"]},
              {"robot": "failure", "ok": v["check_only"], "bad": v["both_failure"]}],
             [("robot", "the robot's judges said"), ("ok", "physical check: success"),
-             ("bad", "physical check: failure")], cls="verdicts"))
+             ("bad", "physical check: failure")], cls="verdicts")))
     return parts
 
 
@@ -260,7 +291,7 @@ def _configuration(m: dict[str, Any], revisions: list[dict[str, Any]]) -> list[s
     if not cfg:
         return []
     trained_inverse = "inverse_model" in m.get("training", {})
-    conf = [("task", m.get("task", "")), ("skill definition", Html(_code(m.get("skill", "")))), ("seed", cfg.get("seed")),
+    conf = [("task", m.get("task", "")), ("skill definition", _code(m.get("skill", ""))), ("seed", cfg.get("seed")),
             ("multiform version", m.get("version", "not recorded by this run")),
             ("final net version", m.get("net_version", len(revisions))),
             ("demonstrations", cfg.get("demos")), ("evaluation trials", cfg.get("eval_trials")),
@@ -271,25 +302,25 @@ def _configuration(m: dict[str, Any], revisions: list[dict[str, Any]]) -> list[s
             ("joints driven by", "the learned auxiliary inverse model" if trained_inverse
              else "the env's own servos (no inverse model)"),
             ("worker processes", cfg.get("workers"))]
-    return ["<h2>Configuration</h2>" + _table([{"k": k, "v": v if isinstance(v, Html) else _fmt(v)}
-                                                for k, v in conf], [("k", "setting"), ("v", "value")])]
+    return [_h("<h2>Configuration</h2>{}", _table([{"k": k, "v": v if isinstance(v, Html) else _fmt(v)}
+                                                    for k, v in conf], [("k", "setting"), ("v", "value")]))]
 
 
 def _demonstrations(d: Any) -> list[str]:
     if not isinstance(d, dict):
         return []
-    parts = ["<h2>Demonstrations</h2>"]
+    parts = [Html("<h2>Demonstrations</h2>")]
     dur = d.get("duration_s", {})
-    text = f"{d['count']} demonstrations by the scripted mentor in <code>{_e(d.get('file', 'demos.h5'))}</code>"
+    text = [_h("{} demonstrations by the scripted mentor in {}", d["count"], _code(d.get("file", "demos.h5")))]
     if dur:
-        text += _e(f", {dur['total']:.0f} s in all (each {dur['min']:.1f}–{dur['max']:.1f} s)")
+        text.append(f", {dur['total']:.0f} s in all (each {dur['min']:.1f}–{dur['max']:.1f} s)")
     if "samples" in d:
-        text += _e(f", {d['samples']} samples")
+        text.append(f", {d['samples']} samples")
     if "mentor_success_rate" in d:
-        text += _e(f"; the mentor succeeded in {_pct(d['mentor_success_rate'])} (its deliberate mistakes included)")
-    parts.append(_p(text + "."))
+        text.append(f"; the mentor succeeded in {_pct(d['mentor_success_rate'])} (its deliberate mistakes included)")
+    parts.append(_p(_join([*text, "."])))
     if d.get("samples_per_transition"):
-        parts.append(_table([{"t": Html(_code(t)), "n": n} for t, n in d["samples_per_transition"].items()],
+        parts.append(_table([{"t": _code(t), "n": n} for t, n in d["samples_per_transition"].items()],
                             [("t", "transition the mentor tagged"), ("n", "samples")]))
     return parts
 
@@ -298,9 +329,9 @@ def _revisions(m: dict[str, Any], revisions: list[dict[str, Any]]) -> list[str]:
     if not revisions:
         return []
     titles = {k: s.get("title", k) for k, s in m.get("scenarios", {}).items()}
-    return ["<h2>How the robot revised the definition</h2>",
-            _table([{**r, "operator": word(r["operator"]), "target": Html(_code(r["target"])),
-                     "scenario": titles.get(r.get("scenario")) or Html(_code(r.get("scenario", "")))}
+    return [Html("<h2>How the robot revised the definition</h2>"),
+            _table([{**r, "operator": word(r["operator"]), "target": _code(r["target"]),
+                     "scenario": titles.get(r.get("scenario")) or _code(r.get("scenario", ""))}
                     for r in revisions],
                    [("version", "version"), ("scenario", "practice scenario"),
                     ("after_trial", "after trial"), ("operator", "change"), ("target", "of"),
@@ -312,18 +343,17 @@ def _nets(nets: list[dict[str, Any]], revisions: list[dict[str, Any]]) -> list[s
         return []
     head = ("The net before and after each revision" if revisions
             else "The net as the mentor wrote it (practice revised nothing)")
-    return ([f"<h2>{_e(head)}</h2><div class='nets'>"]
-            + [f"<figure>{_img(n['file'], n['caption'])}<figcaption>{_e(n['caption'])}</figcaption></figure>"
-               for n in nets]
-            + ["</div>"])
+    return [_h("<h2>{}</h2><div class='nets'>{}</div>", head,
+               _join(_h("<figure>{}<figcaption>{}</figcaption></figure>", _img(n["file"], n["caption"]), n["caption"])
+                     for n in nets))]
 
 
 def _scenarios(scen: dict[str, Any]) -> list[str]:
     if not scen:
         return []
-    parts = ["<h2>Practice scenarios</h2>"]
+    parts = [Html("<h2>Practice scenarios</h2>")]
     for key, s in scen.items():
-        parts.append(f"<h3>{_e(s.get('title', key))}</h3>" + _p(_e(s.get("summary", "") or _practice_summary(s))))
+        parts.append(_h("<h3>{}</h3>{}", s.get("title", key), _p(s.get("summary", "") or _practice_summary(s))))
         if s.get("plot"):
             parts.append(_img(s["plot"], f"practice {s.get('title', key)}"))
             parts.append(_p("Each dot is a trial, numbered from 0 as in the practice log; an orange line "
@@ -340,21 +370,22 @@ def _trial_plots(plots: dict[str, Any]) -> list[str]:
             continue
         e = _plot_entry(plots[key])
         caption = e.get("caption", "a successful trial" if key == "success_trial" else "recovery from a push")
+        caption = str(caption)
         fig = f" (cf. the paper's {e['figure']})" if e.get("figure") else ""
-        parts.append(f"<h2>{_e(caption[0].upper() + caption[1:])}</h2>{_img(e['file'], caption)}")
-        text = f"Motion variables and commands, the token's place shaded, every firing labelled{fig}."
+        parts.append(_h("<h2>{}</h2>{}", caption[:1].upper() + caption[1:], _img(e.get("file"), caption)))
+        text = [f"Motion variables and commands, the token's place shaded, every firing labelled{fig}."]
         if e.get("fired"):
-            text += " Fired in order: " + " ".join(_code(t) for t in e["fired"]) + "."
+            text.append(_h(" Fired in order: {}.", _join((_code(t) for t in e["fired"]), " ")))
         if e.get("push_time") is not None:
-            text += _e(f" The experimenter pushed at {e['push_time']:.2f} s (dashed line).")
-        parts.append(_p(text))
+            text.append(f" The experimenter pushed at {e['push_time']:.2f} s (dashed line).")
+        parts.append(_p(_join(text)))
     return parts
 
 
 def _evaluation(m: dict[str, Any], plots: dict[str, Any], revisions: list[dict[str, Any]]) -> list[str]:
     if not m.get("ablation"):
         return []
-    parts = ["<h2>Evaluation and ablations (same seeds, same demonstrations)</h2>"]
+    parts = [Html("<h2>Evaluation and ablations (same seeds, same demonstrations)</h2>")]
     if "evaluation" in plots:
         parts.append(_img(_plot_entry(plots["evaluation"])["file"], "success over the evaluation trials"))
     rows = [{**r, "success": _pct(r)} for r in m["ablation"]]
@@ -367,22 +398,26 @@ def _evaluation(m: dict[str, Any], plots: dict[str, Any], revisions: list[dict[s
 def _views(views: dict[str, Any]) -> list[str]:
     if not views:
         return []
-    return ["<h2>Recordings for rerun's viewer</h2>",
-            _p("Open one with <code>rerun FILE</code> (or drop it on the web viewer): the state and commands "
-               "over time, the net with its marking at each firing, the scene, pushes, clips and grades."),
-            "<ul>" + "".join(f"<li><a href='{_e(v['file'])}'>{_e(v['file'])}</a>: {_e(v['caption'])}</li>"
-                             for v in views.values()) + "</ul>"]
+    items = []
+    for v in views.values():
+        url = _url(v.get("file"))
+        link = _h("<a href='{}'>{}</a>", url, url) if url else _e(v.get("file"))
+        items.append(_h("<li>{}: {}</li>", link, v.get("caption", "")))
+    return [Html("<h2>Recordings for rerun's viewer</h2>"),
+            _p(_h("Open one with <code>rerun FILE</code> (or drop it on the web viewer): the state and commands "
+                  "over time, the net with its marking at each firing, the scene, pushes, clips and grades.")),
+            _h("<ul>{}</ul>", _join(items))]
 
 
 def _videos(vids: dict[str, Any], plots: dict[str, Any]) -> list[str]:
     if not vids:
         return []
     pushed = any(_plot_entry(v).get("push_time") is not None for v in plots.values())
-    return (["<h2>Videos</h2>",
+    return ([Html("<h2>Videos</h2>"),
              _p("Each frame shows the time, the place the token is in and the transition being executed"
                 + (", and for 0.6 s from it, the push." if pushed else "."))]
-            + [f"<h3>{_e(v.get('caption', key))}</h3><video controls muted src='{_e(v['file'])}'></video>"
-               for key, v in vids.items()])
+            + [_h("<h3>{}</h3><video controls muted src='{}'></video>", v.get("caption", key), _url(v.get("file")))
+               for key, v in vids.items() if _url(v.get("file"))])
 
 
 def _laws(laws_m: dict[str, Any] | None) -> list[str]:
@@ -397,20 +432,19 @@ def _laws(laws_m: dict[str, Any] | None) -> list[str]:
         if nrmse is not None and nrmse > 1:
             note = "worse than predicting the mean command"
             worse.append(k)
-        laws.append({**v, "law": Html(_code(k)), "length_scales": _named(v.get("length_scales", {})),
+        laws.append({**v, "law": _code(k), "length_scales": _named(v.get("length_scales", {})),
                      "mode": "sparse (inducing points)" if v.get("mode") == "sparse" else "exact", "note": note})
-    parts = ["<h2>Laws learned from demonstration</h2>",
+    parts = [Html("<h2>Laws learned from demonstration</h2>"),
              _table(laws, [("law", "law"), ("n", "training samples"), ("mode", "GP"),
                            ("heldout_nrmse", "held-out NRMSE"), ("note", "note"),
                            ("length_scales", "length scales"), ("signal_std", "σf"), ("noise_std", "σn")])]
     if worse:
-        parts.append(_p(
+        parts.append(_p(_h(
             "NRMSE is the held-out error divided by the spread of the commands; above 1 the law predicts the "
-            "mentor's commands on unseen demonstrations worse than their mean would. "
-            + " ".join(_code(w) for w in worse)
-            + (" is" if len(worse) == 1 else " are")
-            + " such a law: the skill works through the net's closed loop, not through imitation accuracy, "
-              "and a law this loose is the first place to look when its sub-procedure fails."))
+            "mentor's commands on unseen demonstrations worse than their mean would. {} {} such a law: the skill "
+            "works through the net's closed loop, not through imitation accuracy, and a law this loose is the "
+            "first place to look when its sub-procedure fails.", _join((_code(w) for w in worse), " "),
+            "is" if len(worse) == 1 else "are")))
     return parts
 
 
@@ -422,10 +456,10 @@ def _judges(judges_m: dict[str, Any] | None) -> list[str]:
         n, acc = v.get("heldout_segments"), v.get("heldout_accuracy")
         held = "–" if acc is None else (f"{round(acc * n)}/{n} ({100 * acc:.0f} %)" if n else f"{100 * acc:.1f} %")
         cv = v.get("cv_score")
-        judges.append({"place": Html(_code(k)), "kernel": v.get("kernel", ""),
+        judges.append({"place": _code(k), "kernel": v.get("kernel", ""),
                        "cv": "–" if cv is None else f"{100 * cv:.1f} %", "held": held,
                        "segments": v.get("segments"), "success": v.get("success_labels")})
-    return ["<h2>Judges learned from evaluation</h2>",
+    return [Html("<h2>Judges learned from evaluation</h2>"),
             _table(judges, [("place", "place"), ("kernel", "chosen kernel"), ("cv", "cross-validated accuracy"),
                             ("held", "held-out segments right"), ("segments", "labelled segments"),
                             ("success", "of them success")])]

@@ -22,6 +22,7 @@ import numpy as np
 from ..demos.dataset import read_dataset
 from ..demos.episode import Episode
 from ..errors import InvalidInput
+from ..model import make_env
 from ..report.video import draw_lines, render_qpos, replay, write_mp4
 from ..runtime.trace import Trace
 from . import scene
@@ -73,7 +74,7 @@ def replay_demo(path: str | os.PathLike, index: int = 0, every: int = 33) -> Rep
         raise InvalidInput(f"has {len(ds.episodes)} demonstration(s); there is no demo {index}", file=str(path),
                            element="--demo")
     ep: Episode = ds.episodes[index]
-    env = gym.make(ds.env_name, disable_env_checker=True, **{**ds.env_kwargs, "render_mode": "rgb_array", "shadows": False})
+    env = make_env(ds.env_name, ds.env_kwargs, str(path), render_mode="rgb_array", shadows=False)
     obs, snaps = replay(env, ep, qpos_every=every)
     n = min(len(obs), ep.num_samples)
     # the replayed states rounded as the file stores them (float32 by default) match it to the last bit

@@ -11,13 +11,19 @@ Entities, on the timelines ``tick`` (control ticks) and ``sim_time``:
 * ``events`` — pushes, safety clips and the outcome; ``judges/<place>`` — the judges' grades at the end.
 
 The recording is saved to an ``.rrd`` file (written beside its final name and renamed when complete),
-and optionally sent live to a rerun viewer at the same time.
+and optionally sent live to a rerun viewer at the same time. The live copy is best effort and never
+holds up a trial: it goes out from a thread of its own through a bounded queue (what a slow viewer
+cannot take is dropped), and closing waits for it a few seconds at most; a viewer that is
+unreachable or never answers costs the file nothing and the command at most those seconds.
 """
 
 from __future__ import annotations
 
 import os
+import queue
+import sys
 import tempfile
+import threading
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -45,8 +51,98 @@ def viewer_url(live: str | None) -> str | None:
     return live
 
 
+class LiveView:
+    """A best-effort copy of a recording sent to the viewer at ``url`` from a thread of its own:
+    the calls (:meth:`call`) go through a queue of ``capacity`` entries and are dropped when it is
+    full, so neither a slow nor an unreachable viewer ever blocks the caller."""
+
+    FLUSH_SECONDS = 2.0
+
+    def __init__(self, url: str, recording_id: str, capacity: int = 100_000):
+        self.url = url
+        self.dropped = 0
+        self.error = ""
+        self._rec: rr.RecordingStream | None = None
+        self._queue: queue.Queue = queue.Queue(maxsize=capacity)
+        self._closing = threading.Event()
+        self._thread = threading.Thread(target=self._send, args=(recording_id,), name="multiform-view", daemon=True)
+        self._thread.start()
+
+    def call(self, method: str, *args: Any, **kwargs: Any) -> None:
+        """``RecordingStream.<method>(*args, **kwargs)`` on the live stream, when the thread gets to it."""
+        try:
+            self._queue.put_nowait((method, args, kwargs))
+        except queue.Full:
+            self.dropped += 1
+
+    def _send(self, recording_id: str) -> None:
+        try:
+            self._rec = rec = rr.RecordingStream(APP, recording_id=recording_id)
+            rec.set_sinks(rr.GrpcSink(self.url))
+            while True:
+                try:
+                    method, args, kwargs = self._queue.get(timeout=0.05)
+                except queue.Empty:
+                    if self._closing.is_set():
+                        break
+                    continue
+                getattr(rec, method)(*args, **kwargs)
+            rec.flush(timeout_sec=self.FLUSH_SECONDS)
+        except Exception as exc:          # the viewer is best effort: its failure is reported, not raised
+            self.error = f"{type(exc).__name__}: {exc}"
+            if self._rec is not None:
+                _keep_for_ever(self._rec)
+            return
+        rec.disconnect()
+
+    def close(self, timeout: float = 5.0) -> str:
+        """Let the thread send what is queued, waiting ``timeout`` seconds at most; returns "" if the
+        viewer took it all, else what went wrong. A viewer still not answering is left behind (see
+        :func:`_keep_for_ever`)."""
+        self._closing.set()
+        self._thread.join(timeout)
+        if self._thread.is_alive():
+            if self._rec is not None:
+                _keep_for_ever(self._rec)
+            return f"the viewer at {self.url} did not answer within {timeout:g} s"
+        if self.error:
+            return f"the viewer at {self.url} could not be reached ({self.error.splitlines()[0][:200]})"
+        if self.dropped:
+            return f"the viewer at {self.url} was too slow: {self.dropped} of the recording's messages were not sent"
+        return ""
+
+
+def _keep_for_ever(rec: rr.RecordingStream) -> None:
+    """Never release ``rec``, whose viewer does not answer: rerun disconnects a released stream (at the
+    next release of any stream, or at exit) by waiting for its viewer, for ever if it never answers.
+    The stream is leaked instead (a reference that is never dropped) and rerun's exit-time flush of
+    every stream is switched off."""
+    import ctypes
+    ctypes.pythonapi.Py_IncRef(ctypes.py_object(rec))
+    rr.unregister_shutdown()
+
+
+class _Tee:
+    """The file's recording stream, each call also queued for the live view."""
+
+    def __init__(self, rec: rr.RecordingStream, live: LiveView):
+        self._rec, self._live = rec, live
+
+    def __getattr__(self, name: str) -> Any:
+        method = getattr(self._rec, name)
+
+        def both(*args: Any, **kwargs: Any) -> Any:
+            self._live.call(name, *args, **kwargs)
+            return method(*args, **kwargs)
+        return both
+
+
+_unreachable: set[str] = set()        # viewers that failed once: later recordings of this process skip them
+
+
 class Recording:
-    """A rerun recording saved to ``path`` (atomically, on :meth:`close`) and sent to ``live``."""
+    """A rerun recording saved to ``path`` (atomically, on :meth:`close`) and sent to ``live``
+    (best effort: see :class:`LiveView`)."""
 
     def __init__(self, path: str | os.PathLike, title: str = "", live: str | None = None):
         self.path = Path(path)
@@ -54,24 +150,35 @@ class Recording:
         fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".rrd", dir=self.path.parent)
         os.close(fd)
         self._tmp = Path(tmp)
-        self.rec = rr.RecordingStream(APP, recording_id=f"{self.path.stem}-{os.getpid()}-{id(self)}")
+        recording_id = f"{self.path.stem}-{os.getpid()}-{id(self)}"
+        self._file = rr.RecordingStream(APP, recording_id=recording_id)
+        self._file.set_sinks(rr.FileSink(str(self._tmp)))
         url = viewer_url(live)
-        sinks = [rr.FileSink(str(self._tmp))] + ([rr.GrpcSink(url)] if url else [])
-        self.rec.set_sinks(*sinks)
+        self.live = LiveView(url, recording_id) if url and url not in _unreachable else None
+        self.rec: Any = _Tee(self._file, self.live) if self.live is not None else self._file
         if title:
             self.rec.log("description", rr.TextDocument(title), static=True)
 
     def close(self) -> Path:
-        self.rec.flush()
-        self.rec.disconnect()
+        """Complete the file (always) and the live copy (best effort; a failure is said once on stderr)."""
+        self._file.flush()
+        self._file.disconnect()
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(self._tmp, 0o666 & ~umask)        # mkstemp made it private; a saved file gets the usual mode
         os.replace(self._tmp, self.path)
+        if self.live is not None:
+            problem = self.live.close()
+            if problem and self.live.url not in _unreachable:
+                _unreachable.add(self.live.url)
+                print(f"multiform: the view: {problem}; the recordings are saved, the viewer is not tried again "
+                      f"({self.path})", file=sys.stderr)
         return self.path
 
     def abandon(self) -> None:
-        self.rec.disconnect()
+        self._file.disconnect()
+        if self.live is not None:
+            self.live.close(timeout=1.0)
         self._tmp.unlink(missing_ok=True)
 
 
