@@ -168,8 +168,8 @@ def command_line(argv: list[str]) -> str:
 
 
 def git_state() -> dict[str, Any]:
-    """The commit checked out and whether tracked files differ from it (the results folder and the
-    rendered page excepted: they are what the benchmarks write)."""
+    """The commit checked out and whether the code that produced the figures differs from it (tracked
+    files under src/ and benchmarks/, pyproject.toml, requirements.lock; the results folder excepted)."""
     def git(*args: str) -> str | None:
         try:
             r = subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True, text=True, timeout=30)
@@ -177,8 +177,8 @@ def git_state() -> dict[str, Any]:
             return None
         return r.stdout.strip() if r.returncode == 0 else None
     commit = git("rev-parse", "HEAD")
-    status = git("status", "--porcelain", "--untracked-files=no", "--", ".",
-                 ":(exclude)benchmarks/results", ":(exclude)docs/measurements.md")
+    status = git("status", "--porcelain", "--untracked-files=no", "--", "src", "benchmarks", "pyproject.toml",
+                 "requirements.lock", ":(exclude)benchmarks/results")
     return {"commit": commit, "dirty": None if status is None else bool(status)}
 
 
