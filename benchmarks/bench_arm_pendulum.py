@@ -101,7 +101,7 @@ def main(argv: list[str] | None = None) -> None:
         print(f"  {label:60s} {med:9.0f} steps/s  {med / 1000:6.1f}x real time")
         rec.figure(f"realtime_{key.replace('+', '_')}", f"ArmPendulum-v0: {label}, real-time factor (median of "
                    f"{args.repeats} runs of {STEPS} steps, one core)", med / 1000, "× real time",
-                   extra={"steps_per_s": round(med)}, target=at_least(20) if key == "ee" else None)
+                   extra={"steps_per_second": round(med)}, target=at_least(20) if key == "ee" else None)
     print("  " + describe("env.step latency (end-effector mode)", np.array(per_step)))
     rec.latency("step_latency_ee", "ArmPendulum-v0: env.step latency, end-effector mode", np.array(per_step))
     ok = np.median(results["ee"]) / 1000 >= 20.0

@@ -88,8 +88,9 @@ def region_speed(rec: Record) -> float:
     print(f"region conditions, 2-D input, mixtures of {regions.components_} components")
     print("  " + describe("into P1 rather than P2", lb))
     print("  " + describe("outside every place", lo))
-    rec.latency("region_back", "region condition \"into P1 rather than P2\" (2-D, mixtures of "
-                f"{regions.components_} components): one evaluation", lb, target=TARGET_US)
+    mixtures = ", ".join(f"{k} {v}" for k, v in regions.components_.items())
+    rec.latency("region_back", f"region condition \"into P1 rather than P2\" (2-D, Gaussian mixtures of {mixtures} "
+                "components): one evaluation", lb, target=TARGET_US)
     rec.latency("region_outside", "region condition \"outside every place\": one evaluation", lo, target=TARGET_US)
     return float(max(np.median(lb), np.median(lo)) * 1e6)
 
@@ -107,8 +108,8 @@ def synthetic_accuracy(rec: Record) -> None:
     section = "components"
     rec.rate("synthetic_near", f"learned condition on synthetic switches ({cond.n_support_} support vectors): holds "
              "at held-out switch states within ±0.15 rad", int(near.sum()), len(near), section=section)
-    rec.rate("synthetic_far", "the same: holds at held-out swing samples far from a switch", int(far.sum()), len(far),
-             section=section)
+    rec.rate("synthetic_far", "learned condition on synthetic switches: holds at held-out swing samples far from a "
+             "switch", int(far.sum()), len(far), section=section)
 
 
 def dataset_accuracy(path: str, skill: str, transition: str, names: list[str] | None, test: list, near: float,
