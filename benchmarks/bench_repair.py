@@ -284,7 +284,7 @@ def record_summary(rec: Record, results: list[dict[str, Any]]) -> None:
     points of the sound skill on the evaluation trials; the evaluation trials of all of them; the
     sound skill's own."""
     sound = {(r["task"], r["seed"]): r["eval"]["rate"] for r in results if r["kind"] == "none" and "eval" in r}
-    tasks = sorted({r["task"] for r in results})
+    tasks = sorted({r["task"] for r in results}, key=lambda t: (t != "pendulum", t))
     for task in tasks + (["all"] if len(tasks) > 1 else []):
         faults = [r for r in results if r["kind"] != "none" and task in ("all", r["task"])]
         what = f"{task}: of {len(faults)} injected faults" if task != "all" else f"all tasks: of {len(faults)} faults"
