@@ -136,7 +136,8 @@ class Record:
         """Per-call times (seconds) as their median and p99 in µs; the value is the median."""
         us = np.asarray(seconds, dtype=float) * 1e6
         stats = {"median": float(np.median(us)), "p99": float(np.percentile(us, 99))}
-        return self.figure(key, label, stats["median"], "µs", values=stats, extra={"samples": int(len(us))}, **kw)
+        extra = {"samples": int(len(us)), **(kw.pop("extra", None) or {})}
+        return self.figure(key, label, stats["median"], "µs", values=stats, extra=extra, **kw)
 
     # -- writing -------------------------------------------------------------------------------
     def data(self) -> dict[str, Any]:

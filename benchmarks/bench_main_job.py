@@ -72,7 +72,7 @@ def record_metrics(rec: Record, m: dict[str, Any], resumed: bool = False) -> Non
         rec.figure("wall_time", f"{task}: the job's wall time" + (" (a resumed run folder: the stages it ran)"
                                                                    if resumed else ""),
                    t["total_s"], "s", target=at_most(WALL_TIME_S[task]) if task in WALL_TIME_S and not resumed else None,
-                   extra={**stages, "closed_loop_µs_per_simulated_ms": t.get("closed_loop_us_per_sim_ms")})
+                   extra={**stages, "µs_per_simulated_ms_of_closed_loop": t.get("closed_loop_us_per_sim_ms")})
     rec.details.update(config=cfg, revisions=[f"{r['scenario']}: {r['operator']} {r['target']}" for r in m["revisions"]],
                        version=m.get("version"), net_version=m.get("net_version"))
 
