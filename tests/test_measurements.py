@@ -51,7 +51,8 @@ def test_a_record_says_what_produced_it_and_holds_its_figures(results, page, tmp
     rec = results.Record(str(BENCH / "bench_example.py"), "An example", section="seeds", variant="pendulum", argv=argv)
     rec.rate("final", "final skill", 190, 200, target=results.at_least(0.95), counts={"pushed": [90, 100]},
              extra={"practice_trials": 55, "robot_seconds_in_practice": 812.4})
-    rec.latency("tick", "one tick", [2e-6] * 98 + [9e-6, 9e-6], target=results.at_most(5, of="p99"))
+    rec.latency("tick", "one tick", [2e-6] * 98 + [9e-6, 9e-6], target=results.at_most(5, of="p99"),
+                extra={"batch": 10})
     rec.figure("speed", "real-time factor", 22.4, "× real time", target=results.at_least(10), section="speed")
     rec.figure("same", "same trials", False, "", target="the same", met=False)
     with pytest.raises(ValueError, match="used twice"):
@@ -70,13 +71,14 @@ def test_a_record_says_what_produced_it_and_holds_its_figures(results, page, tmp
     assert (final["low"], final["high"]) == pytest.approx(wilson(190, 200))
     assert final["met"] is True and final["target"]["text"] == "≥ 95 %"
     assert tick["values"]["median"] == pytest.approx(2.0) and tick["values"]["p99"] > 5 and tick["met"] is False
+    assert tick["extra"] == {"samples": 100, "batch": 10}
     assert speed["met"] is True and same["met"] is False
 
     text = page.render(tmp_path)
     assert ("| final skill | 95.0 % (190/200; 91.0–97.3 %); pushed 90/100, practice trials 55, robot seconds in "
             "practice 812 | ≥ 95 %: met | `python benchmarks/bench_example.py --trials 200 --out 'runs/x y'` | "
             f"{data['date'][:10]} | `{head[:10]}`") in text
-    assert "| one tick | median 2 µs, p99 9 µs; samples 100 | p99 ≤ 5 µs: **not met** |" in text
+    assert "| one tick | median 2 µs, p99 9 µs; samples 100, batch 10 | p99 ≤ 5 µs: **not met** |" in text
     spread = text.split("## Spread over job seeds")[1].split("\n## ")[0]
     assert "final skill" in spread and "real-time factor" not in spread      # a figure goes to its own section
     repair = text.split("## Repair of injected mistakes")[1].split("\n## ")[0]
