@@ -11,7 +11,7 @@ Prints steps per second and the real-time factor (simulated seconds per wall-clo
 each as the median over repeats of 5,000-step runs (a swinging pendulum, a sinusoidal command),
 plus the per-step latency median and p99. Target: ≥ 20× real time on one core.
 
-Run: ``python benchmarks/bench_arm_pendulum.py [--repeats 7]``.
+Run: ``python benchmarks/bench_arm_pendulum.py [--repeats 7] [--results DIR]``.
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ import mujoco
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import Record, add_option, at_least  # noqa: E402
 from _timing import describe, single_thread  # noqa: E402
 
 from multiform.tasks.pendulum_mentor import PendulumMentor  # noqa: E402
@@ -72,7 +73,9 @@ def run_physics(env: ArmPendulumEnv, n: int) -> float:
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeats", type=int, default=7)
+    add_option(ap)
     args = ap.parse_args(argv)
+    rec = Record(__file__, "Simulation speed of ArmPendulum-v0 at 1 kHz", section="speed")
     env = ArmPendulumEnv()
     envt = ArmPendulumEnv(action_mode="torque")
     rc = ReferenceController()
@@ -96,9 +99,14 @@ def main(argv: list[str] | None = None) -> None:
     for key, label in labels.items():
         med = float(np.median(results[key]))
         print(f"  {label:60s} {med:9.0f} steps/s  {med / 1000:6.1f}x real time")
+        rec.figure(f"realtime_{key.replace('+', '_')}", f"ArmPendulum-v0: {label}, real-time factor (median of "
+                   f"{args.repeats} runs of {STEPS} steps, one core)", med / 1000, "× real time",
+                   extra={"steps_per_second": round(med)}, target=at_least(20) if key == "ee" else None)
     print("  " + describe("env.step latency (end-effector mode)", np.array(per_step)))
+    rec.latency("step_latency_ee", "ArmPendulum-v0: env.step latency, end-effector mode", np.array(per_step))
     ok = np.median(results["ee"]) / 1000 >= 20.0
     print(f"target >= 20x real time (end-effector mode): {'met' if ok else 'NOT met'}")
+    rec.write(args.results)
 
 
 if __name__ == "__main__":

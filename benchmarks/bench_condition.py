@@ -20,7 +20,7 @@ without them the last 30 % of ``demos.h5``). Printed, each with a Wilson 95 % in
 * far: the fraction of held-out samples of the maneuvers before the switch, further than 0.3 s
   from any switch, at which it holds (target ≤ 2 %).
 
-    .venv/bin/python benchmarks/bench_condition.py [--dataset demos.h5 ...]
+    .venv/bin/python benchmarks/bench_condition.py [--dataset demos.h5 ...] [--results DIR]
 """
 
 import argparse
@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from _results import Record, add_option, at_least, at_most
 from _timing import describe, latencies, single_thread
 from bench_judges import TEST_SEED, heldout_episodes
 from multiform.learn.condition import LearnedCondition
@@ -38,7 +39,10 @@ from multiform.learn.fast_svm import FastDecision
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def speed(d: int) -> float:
+TARGET_US = at_most(20, of="median")
+
+
+def speed(d: int, rec: Record) -> float:
     rng = np.random.default_rng(0)
     X = rng.normal(size=(6000, d))
     y = X[:, 0] + 0.5 * X[:, 1] ** 2 + rng.normal(0, 0.8, len(X)) > 0.6
@@ -60,10 +64,16 @@ def speed(d: int) -> float:
     print("  " + describe("cond(x), compiled path, exactly 500 SVs", cap))
     print("  " + describe("sklearn Pipeline(StandardScaler, SVC).decision_function, 1 sample", skl))
     print(f"  speed-up {np.median(skl) / np.median(fast):.1f}x")
+    rec.latency(f"cond_{d}d", f"learned condition, {d}-D input, {cond.n_support_} support vectors: one evaluation "
+                "(compiled path)", fast, target=TARGET_US)
+    rec.latency(f"cond_{d}d_500", f"learned condition, {d}-D input, exactly 500 support vectors (the cap): one "
+                "evaluation", cap, target=TARGET_US)
+    rec.latency(f"cond_{d}d_sklearn", f"the same condition through scikit-learn's decision_function, {d}-D, "
+                "1 sample (for comparison)", skl)
     return float(max(np.median(fast), np.median(cap)) * 1e6)
 
 
-def region_speed() -> float:
+def region_speed(rec: Record) -> float:
     """The region conditions the repair loop adds (t7: "belongs to P1 rather than P2"; "outside every place")."""
     sys.path.insert(0, str(ROOT))
     from multiform.learn.region import PlaceRegions
@@ -78,22 +88,32 @@ def region_speed() -> float:
     print(f"region conditions, 2-D input, mixtures of {regions.components_} components")
     print("  " + describe("into P1 rather than P2", lb))
     print("  " + describe("outside every place", lo))
+    mixtures = ", ".join(f"{k} {v}" for k, v in regions.components_.items())
+    rec.latency("region_back", f"region condition \"into P1 rather than P2\" (2-D, Gaussian mixtures of {mixtures} "
+                "components): one evaluation", lb, target=TARGET_US)
+    rec.latency("region_outside", "region condition \"outside every place\": one evaluation", lo, target=TARGET_US)
     return float(max(np.median(lb), np.median(lo)) * 1e6)
 
 
-def synthetic_accuracy() -> None:
+def synthetic_accuracy(rec: Record) -> None:
     sys.path.insert(0, str(ROOT))
     from tests.learn.synthetic import switch_data
 
     train, test = switch_data(0), switch_data(1)
     cond = LearnedCondition(("theta", "omega")).fit_switches(train.positives, train.negatives)
-    print(f"synthetic switches: {cond.n_support_} support vectors; holds at {cond.holds(test.near).mean():.1%} of "
-          f"held-out switch states within ±0.15 rad, at {cond.holds(test.negatives).mean():.2%} of held-out far "
+    near, far = cond.holds(test.near), cond.holds(test.negatives)
+    print(f"synthetic switches: {cond.n_support_} support vectors; holds at {near.mean():.1%} of "
+          f"held-out switch states within ±0.15 rad, at {far.mean():.2%} of held-out far "
           "swing samples")
+    section = "components"
+    rec.rate("synthetic_near", f"learned condition on synthetic switches ({cond.n_support_} support vectors): holds "
+             "at held-out switch states within ±0.15 rad", int(near.sum()), len(near), section=section)
+    rec.rate("synthetic_far", "learned condition on synthetic switches: holds at held-out swing samples far from a "
+             "switch", int(far.sum()), len(far), section=section)
 
 
 def dataset_accuracy(path: str, skill: str, transition: str, names: list[str] | None, test: list, near: float,
-                     around: float) -> None:
+                     around: float, rec: Record) -> None:
     from multiform.demos.dataset import read_dataset
     from multiform.learn.condition import switch_windows, window_hits
     from multiform.learn.training import fit_switch_condition, switch_variables
@@ -139,6 +159,15 @@ def dataset_accuracy(path: str, skill: str, transition: str, names: list[str] | 
     far = cond.holds(d.negatives) if len(d.negatives) else np.zeros(0, bool)
     print(f"  far (target ≤ 2 %): holds at {rate(int(far.sum()), len(far))} of held-out samples of the maneuvers "
           f"before {transition} further than 0.3 s from any switch")
+    what = f"{transition} learned over {', '.join(names)} from {len(eps)} demos, on {len(test)} held-out demos"
+    rec.details.update(transition=transition, names=names, training_demos=len(eps), heldout_demos=len(test),
+                       support_vectors=cond.n_support_, fit=info)
+    rec.rate("exact", f"{what}: holds at the first sample of the mentor's successful switches", int(at.sum()), len(sw),
+             section="components")
+    rec.rate("windowed", f"{what}: holds within ±{around} s of each switch's first sample at |{v}| ≤ {near}",
+             int(hit.sum()), len(wins), target=at_least(0.9), section="components")
+    rec.rate("far", f"{what}: holds at samples before {transition} further than 0.3 s from any switch",
+             int(far.sum()), len(far), target=at_most(0.02), section="components")
 
 
 def main() -> None:
@@ -155,15 +184,19 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--near", type=float, default=0.15, help="rad from upright counted as near")
     ap.add_argument("--around", type=float, default=0.3, help="s either side of a switch in the windowed figure")
+    add_option(ap)
     args = ap.parse_args()
+    rec = Record(__file__, "A learned firing condition: evaluation latency, and where it holds", section="speed",
+                 variant="dataset" if args.dataset else None)
     print("BLAS pinned to one thread (threadpoolctl.threadpool_limits(1))")
-    meds = [speed(d) for d in (2, 4)] + [region_speed()]
+    meds = [speed(d, rec) for d in (2, 4)] + [region_speed(rec)]
     print(f"target ≤ 20 µs median: {'met' if max(meds) <= 20 else 'NOT met'} (worst median {max(meds):.2f} µs)")
     if args.dataset:
         test = heldout_episodes(args.test_dataset, args.record, args.test_seed, workers=args.workers)
-        dataset_accuracy(args.dataset, args.skill, args.transition, args.names, test, args.near, args.around)
+        dataset_accuracy(args.dataset, args.skill, args.transition, args.names, test, args.near, args.around, rec)
     else:
-        synthetic_accuracy()
+        synthetic_accuracy(rec)
+    rec.write(args.results)
 
 
 if __name__ == "__main__":

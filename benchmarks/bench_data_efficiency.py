@@ -11,7 +11,9 @@ Prints one row per (demos, seed, variant): success with its Wilson 95 % interval
 pushed, practice trials, practice seconds of robot time (the anchor: PILCO needed 17.5 s of
 interaction for a cart-pole swing-up), mentor-labelled trials; then the median over seeds per
 (demos, variant); then, for the counts the task has a target for (:data:`TARGETS`), each seed's
-figures against it, met or not. Writes ``OUT/data_efficiency.json`` and ``OUT/data_efficiency.png``.
+figures against it, met or not. Writes ``OUT/data_efficiency.json`` and ``OUT/data_efficiency.png``,
+and the figures of each demonstration count to
+``benchmarks/results/bench_data_efficiency_<task>_<N>demos.json`` (``--results DIR``).
 
     .venv/bin/python benchmarks/bench_data_efficiency.py --out runs/data_efficiency \\
         [--demos 5 10 20 40] [--seeds 0 1 2] [--trials 200] [--workers 2] [--ray ADDRESS]
@@ -29,6 +31,7 @@ import argparse
 import os
 import shutil
 import statistics
+import sys
 import warnings
 from pathlib import Path
 
@@ -38,6 +41,8 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 warnings.filterwarnings("ignore", message="A single label was found", category=UserWarning)
 warnings.filterwarnings("ignore", message="y_pred contains classes not in y_true", category=UserWarning)
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import Record, add_option  # noqa: E402
 from multiform.io import read_json, write_json  # noqa: E402
 from multiform.job import Job, JobConfig  # noqa: E402
 
@@ -114,9 +119,10 @@ TARGETS = {
 }
 
 
-def check_targets(task: str, rows: list[dict]) -> list[str]:
-    """One line per (demos, variant) the task has a target for: each seed's figures, met or not."""
-    lines = []
+def check_targets(task: str, rows: list[dict]) -> list[dict]:
+    """One verdict per (demos, variant) the task has a target for: ``demos``, ``variant``, ``target``
+    (its text), ``met`` and ``text`` (each seed's figures, met or not)."""
+    out = []
     for demos, t in sorted(TARGETS.get(task, {}).items()):
         for variant in VARIANTS:
             sel = sorted((r for r in rows if r["demos"] == demos and r["variant"] == variant), key=lambda r: r["seed"])
@@ -125,8 +131,9 @@ def check_targets(task: str, rows: list[dict]) -> list[str]:
             if t["rule"] == "median":
                 med = statistics.median(r["rate"] for r in sel)
                 ok = med >= t["rate"]
-                lines.append(f"  {demos:3d} demos, {variant}: median over {len(sel)} seeds {100 * med:.1f} % "
-                             f"(target >= {100 * t['rate']:.0f} %): {'met' if ok else 'NOT met'}")
+                bar = f"median over the seeds ≥ {100 * t['rate']:.0f} %"
+                out.append({"demos": demos, "variant": variant, "target": bar, "met": ok,
+                            "text": f"median over {len(sel)} seeds {100 * med:.1f} %"})
                 continue
             parts, met = [], True
             for r in sel:
@@ -140,11 +147,45 @@ def check_targets(task: str, rows: list[dict]) -> list[str]:
                     text += f", {r['practice_trials']} practice / {r['mentor_labelled_trials']} with the mentor"
                 parts.append(text + ("" if all(checks) else " (short)"))
                 met = met and all(checks)
-            bar = f">= {100 * t['rate']:.0f} %" + (f", pushed >= {100 * t['pushed']:.0f} %" if "pushed" in t else "") + \
-                (f", <= {t['practice']} practice and <= {t['mentor']} mentor trials" if "practice" in t else "")
-            lines.append(f"  {demos:3d} demos, {variant}: every seed {bar}: {'; '.join(parts)}: "
-                         f"{'met' if met else 'NOT met'}")
-    return lines
+            bar = f"≥ {100 * t['rate']:.0f} %" + (f", pushed ≥ {100 * t['pushed']:.0f} %" if "pushed" in t else "") + \
+                (f", ≤ {t['practice']} practice and ≤ {t['mentor']} mentor trials" if "practice" in t else "")
+            out.append({"demos": demos, "variant": variant, "target": f"every seed {bar}", "met": met,
+                        "text": "; ".join(parts)})
+    return out
+
+
+def target_lines(verdicts: list[dict]) -> list[str]:
+    return [f"  {v['demos']:3d} demos, {v['variant']}: {v['target']}: {v['text']}: {'met' if v['met'] else 'NOT met'}"
+            for v in verdicts]
+
+
+def record_rows(rec: Record, task: str, demos: int, rows: list[dict]) -> None:
+    """The figures of one demonstration count: per variant and job seed the final success (unpushed /
+    pushed), the practice trials, how many took the mentor's time and the robot's time in practice;
+    per variant the median and range over the seeds; and the task's target, where it has one."""
+    sel = [r for r in rows if r["demos"] == demos]
+    verdicts = {v["variant"]: v for v in check_targets(task, sel)}
+    for variant in VARIANTS:
+        vrows = sorted((r for r in sel if r["variant"] == variant), key=lambda r: r["seed"])
+        if not vrows:
+            continue
+        short = "learn" if variant == VARIANTS[1] else "repair"
+        for r in vrows:
+            counts = {"unpushed": r["unpushed"]}
+            if r["pushed"][1]:
+                counts["pushed"] = r["pushed"]
+            rec.rate(f"{short}_seed_{r['seed']}", f"{task} from {demos} demos, {variant}, job seed {r['seed']}: "
+                     f"success on {r['trials']} evaluation trials", r["successes"], r["trials"], counts=counts,
+                     extra={"practice_trials": r["practice_trials"],
+                            "mentor_labelled_trials": r["mentor_labelled_trials"],
+                            "robot_seconds_in_practice": r["robot_seconds"]})
+        rates = [r["rate"] for r in vrows]
+        v = verdicts.get(variant)
+        rec.figure(f"{short}_median", f"{task} from {demos} demos, {variant}: median over job seeds "
+                   f"{', '.join(str(r['seed']) for r in vrows)}", statistics.median(rates), "%",
+                   values={"median": statistics.median(rates), "min": min(rates), "max": max(rates)},
+                   target=v["target"] if v else None, met=v["met"] if v else None)
+    rec.details["rows"] = sel
 
 
 def plot(rows: list[dict], path: Path) -> None:
@@ -185,7 +226,10 @@ def main() -> None:
     ap.add_argument("--variants", nargs="+", choices=["repair", "learn"], default=["repair", "learn"])
     ap.add_argument("--ray", metavar="ADDRESS", default=None,
                     help="run the pipelines as Ray tasks: auto, local (with --workers CPUs) or a cluster address")
+    add_option(ap)
     args = ap.parse_args()
+    records = {n: Record(__file__, "Success against the number of demonstrations", section="data_efficiency",
+                         variant=f"{args.task}_{n}demos") for n in args.demos}
     out = Path(args.out)
     if args.ray:
         run_on_ray(args, out)
@@ -215,7 +259,7 @@ def main() -> None:
                 rates = [100 * r["rate"] for r in sel]
                 print(f"  {demos:3d} demos, {variant:<24} {statistics.median(rates):5.1f} % "
                       f"(range {min(rates):.1f}-{max(rates):.1f} %, {len(sel)} seeds)")
-    lines = check_targets(args.task, rows)
+    lines = target_lines(check_targets(args.task, rows))
     if lines:
         print("\nagainst the targets:")
         print("\n".join(lines))
@@ -223,6 +267,9 @@ def main() -> None:
     write_json(out / "data_efficiency.json", rows)
     plot(rows, out / "data_efficiency.png")
     print(f"wrote {out / 'data_efficiency.json'} and {out / 'data_efficiency.png'}")
+    for demos, rec in records.items():
+        record_rows(rec, args.task, demos, rows)
+        rec.write(args.results)
 
 
 if __name__ == "__main__":

@@ -8,7 +8,7 @@ and the n above which `GPLaw` stops computing the variance exactly on the hot pa
 Data: a smooth nonlinear law of 5 state variables (pendulum-like angle, rate, cart position and
 velocity, a phase) with 2 command outputs plus noise — synthetic, so the truth is known.
 
-Usage: .venv/bin/python benchmarks/bench_gp.py [--calls N] [--quick]
+Usage: .venv/bin/python benchmarks/bench_gp.py [--calls N] [--quick] [--results DIR]
 """
 
 import argparse
@@ -19,6 +19,7 @@ import time
 import numpy as np
 from sklearn.base import clone
 
+from _results import Record, add_option, at_most
 from _timing import describe, latencies, single_thread
 from multiform.learn.gp import GPLaw
 
@@ -76,22 +77,26 @@ def main() -> None:
     ap.add_argument("--calls", type=int, default=20_000)
     ap.add_argument("--repeats", type=int, default=3, help="runs per latency figure (best one printed)")
     ap.add_argument("--quick", action="store_true", help="skip the n = 50,000 sparse fit")
+    add_option(ap)
     args = ap.parse_args()
+    rec = Record(__file__, "GP control law: fit time and one-state latency", section="speed",
+                 variant="quick" if args.quick else None)
     rng = np.random.default_rng(0)
     Xt, Yt = sample(2000, rng)
     Yt_true = law(Xt)
     states = [Xt[i].copy() for i in range(1000)]
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} "
           f"(other work on a shared machine inflates every figure)")
-    exact, X, Y = fit_exact(rng, Xt, Yt_true)
-    one_state(exact, X, Y, Xt, states, rng, args)
-    if args.quick:
-        return
-    sparse_section(rng, Xt, Yt_true, states, args)
-    print(f"\nload average at the end: {os.getloadavg()[0]:.2f} (1 min), {os.getloadavg()[1]:.2f} (5 min)")
+    exact, X, Y = fit_exact(rng, Xt, Yt_true, rec)
+    one_state(exact, X, Y, Xt, states, rng, args, rec)
+    if not args.quick:
+        sparse_section(rng, Xt, Yt_true, states, args, rec)
+        print(f"\nload average at the end: {os.getloadavg()[0]:.2f} (1 min), {os.getloadavg()[1]:.2f} (5 min)")
+    rec.write(args.results)
 
 
-def fit_exact(rng: np.random.Generator, Xt: np.ndarray, Yt_true: np.ndarray) -> tuple[GPLaw, np.ndarray, np.ndarray]:
+def fit_exact(rng: np.random.Generator, Xt: np.ndarray, Yt_true: np.ndarray,
+              rec: Record) -> tuple[GPLaw, np.ndarray, np.ndarray]:
     """The exact law on 2,000 points: fit time, hyperparameters, held-out error."""
     print("\n== fit with hyperparameters, n = 2,000, 5 inputs, 2 outputs (defaults: ARD, n_hyper=1000, "
           "2 restarts on a 300-point probe, fitting pinned to 1 BLAS thread) ==")
@@ -106,17 +111,25 @@ def fit_exact(rng: np.random.Generator, Xt: np.ndarray, Yt_true: np.ndarray) -> 
           f"σf {s['sigma_f']:.3g}, noise {s['noise']:.3g} (standardised)")
     print("  length scales: " + ", ".join(f"{k} {v:.3g}" for k, v in s["length_scale"].items()))
     print("  held-out nRMSE vs the noiseless law: " + ", ".join(f"{v:.4f}" for v in s["heldout_nrmse"]))
+    rec.figure("fit_exact", "GP law fit with hyperparameters, n = 2,000, 5 inputs, 2 outputs", fit_s, "s",
+               target=at_most(10))
+    rec.figure("nrmse_exact", "GP law, exact n = 2,000 (a synthetic 5-input law): held-out NRMSE against the "
+               "noiseless law, per output", max(s["heldout_nrmse"]), "", values={name: v for name, v in zip(("ax", "az"), s["heldout_nrmse"])},
+               section="components")
     return exact, X, Y
 
 
 def one_state(exact: GPLaw, X: np.ndarray, Y: np.ndarray, Xt: np.ndarray, states: list[np.ndarray],
-              rng: np.random.Generator, args: argparse.Namespace) -> None:
+              rng: np.random.Generator, args: argparse.Namespace, rec: Record) -> None:
     """Latency of one state's mean and variance, exact laws of 250 to 2,000 points."""
     theta = np.concatenate([np.log(exact.length_scale_), [np.log(exact.sigma_f_), np.log(exact.noise_)]])
     print("\n== one state, one core (BLAS pinned to 1 thread with threadpoolctl), "
           f"{args.calls} calls each ==")
     with single_thread():
         ref = calibration(5000)
+        best = f"the run with the lowest p99 of {args.repeats}"
+        rec.figure("calibration", "calibration: a plain-numpy GP mean (n = 5,000, 4 inputs), ≈ 14 µs median on a "
+                   "quiet machine of this kind", ref, "µs")
         print(f"  calibration: FACTS.md's plain-numpy GP mean (n=5000, 4-D) was ≈ 14 µs median where it was "
               f"measured; here {ref:.1f} µs ({ref / 14:.1f}×). numpy's float64 exp is "
               f"{'SIMD (AVX-512)' if avx512() else 'scalar here (no AVX-512 on this CPU), ≈ 5 ns a point'}, "
@@ -130,20 +143,26 @@ def one_state(exact: GPLaw, X: np.ndarray, Y: np.ndarray, Xt: np.ndarray, states
         t = timed("exact n=2000, mean only (predict_one)", exact.predict_one, states, args.calls, args.repeats)
         p99 = np.percentile(t, 99) * 1e6
         print(f"  target p99 ≤ 25 µs: {'met' if p99 <= 25 else 'NOT met'} ({p99:.2f} µs)")
-        timed("exact n=2000, mean only, float64 exponentials (fast_exp=False)", ref.predict_one, states,
-              args.calls, args.repeats)
-        timed(f"exact n=2000 mean + variance through its FITC companion (default, n > "
-              f"exact_var_max_n={exact.exact_var_max_n})", exact.predict_one_var, states, args.calls, args.repeats)
+        rec.latency("exact_mean", "GP law, one state on one core: exact n = 2,000, mean only", t,
+                    target=at_most(25, of="p99"), note=best)
+        t = timed("exact n=2000, mean only, float64 exponentials (fast_exp=False)", ref.predict_one, states,
+                  args.calls, args.repeats)
+        rec.latency("exact_mean_f64", "GP law, exact n = 2,000, mean only, float64 kernel exponentials", t, note=best)
+        t = timed(f"exact n=2000 mean + variance through its FITC companion (default, n > "
+                  f"exact_var_max_n={exact.exact_var_max_n})", exact.predict_one_var, states, args.calls, args.repeats)
+        rec.latency("exact_mean_var", "GP law, exact n = 2,000, mean + variance (through its FITC companion)", t,
+                    note=best)
         for n in (250, 500, 1000, 2000):
             full = GPLaw(sparse_threshold=None, exact_var_max_n=None, theta=theta).fit(X[:n], Y[:n])
-            timed(f"exact n={n} mean + exact variance (O(n²) triangular solve)", full.predict_one_var,
-                  states, min(args.calls, 10_000), args.repeats)
+            t = timed(f"exact n={n} mean + exact variance (O(n²) triangular solve)", full.predict_one_var,
+                      states, min(args.calls, 10_000), args.repeats)
+            rec.latency(f"exact_var_{n}", f"GP law, exact n = {n:,}, mean + exact variance", t, note=best)
         print(f"  → GPLaw computes the variance exactly on the hot path up to n = {exact.exact_var_max_n} "
               "(exact_var_max_n); above, through a FITC companion on n_inducing points (O(m²)).")
 
 
 def sparse_section(rng: np.random.Generator, Xt: np.ndarray, Yt_true: np.ndarray, states: list[np.ndarray],
-                   args: argparse.Namespace) -> None:
+                   args: argparse.Namespace, rec: Record) -> None:
     """The sparse law on 50,000 points: fit time, held-out error, latency."""
     print("\n== sparse GP: n = 50,000, m = 300 inducing points (k-means), FITC ==")
     Xb, Yb = sample(50_000, rng)
@@ -154,14 +173,23 @@ def sparse_section(rng: np.random.Generator, Xt: np.ndarray, Yt_true: np.ndarray
     ss = sparse.summary()
     print(f"  fit (hyperparameters on 1,000 points + k-means + FITC on 50,000): {fit_s:.2f} s; mode "
           f"{ss['mode']}, held-out nRMSE " + ", ".join(f"{v:.4f}" for v in ss["heldout_nrmse"]))
+    rec.figure("fit_sparse", "sparse GP fit, n = 50,000, m = 300 inducing points (hyperparameters on 1,000 points "
+               "+ k-means + FITC)", fit_s, "s")
+    rec.figure("nrmse_sparse", "GP law, sparse m = 300 from n = 50,000 (the same synthetic law): held-out NRMSE, "
+               "per output", max(ss["heldout_nrmse"]), "", values={name: v for name, v in zip(("ax", "az"), ss["heldout_nrmse"])},
+               section="components")
+    best = f"the run with the lowest p99 of {args.repeats}"
     with single_thread():
         print(f"  float32 exponentials for the sparse mean: {'on' if sparse._fast else 'off'} (probe-measured "
               f"deviation {sparse.fast_exp_error_:.2e} of y scale: FITC weights up to "
               f"{np.abs(sparse.beta_).max():.2g} cancel); the variance is float64 in every mode")
-        timed("sparse m=300, mean only", sparse.predict_one, states, args.calls, args.repeats)
+        t = timed("sparse m=300, mean only", sparse.predict_one, states, args.calls, args.repeats)
+        rec.latency("sparse_mean", "GP law, one state on one core: sparse m = 300, mean only", t, note=best)
         t = timed("sparse m=300, mean + variance (predict_one_var)", sparse.predict_one_var, states, args.calls, args.repeats)
         p99 = np.percentile(t, 99) * 1e6
         print(f"  target p99 ≤ 30 µs: {'met' if p99 <= 30 else 'NOT met'} ({p99:.2f} µs)")
+        rec.latency("sparse_mean_var", "GP law, one state on one core: sparse m = 300, mean + variance", t,
+                    target=at_most(30, of="p99"), note=best)
 
 
 if __name__ == "__main__":

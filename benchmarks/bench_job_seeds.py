@@ -4,8 +4,10 @@ same randomised trials (half of them pushed). One seed's success rate says littl
 the demos, the learned conditions and the repairs the practice loop makes all follow the seed.
 
 Prints, per seed: the revisions each scenario made, the final
-success rate with its Wilson 95 % interval (unpushed / pushed), and how the failures ended; then the
+success rate with its Wilson 95 % interval (unpushed / pushed), the practice trials (and how many
+took the mentor's time) and the robot's time in practice, and how the failures ended; then the
 median and range over seeds. No ablations, videos or report (``multiform demo`` does those).
+The figures also go to ``benchmarks/results/bench_job_seeds_<task>.json`` (``--results DIR``).
 
     .venv/bin/python benchmarks/bench_job_seeds.py --out runs/seeds --seeds 0 1 2 [--trials 200]
 
@@ -19,6 +21,7 @@ import argparse
 import collections
 import os
 import statistics
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -32,17 +35,22 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 warnings.filterwarnings("ignore", message="A single label was found", category=UserWarning)
 warnings.filterwarnings("ignore", message="y_pred contains classes not in y_true", category=UserWarning)
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import Record, add_option, at_least  # noqa: E402
 from multiform.evaluation import Variant, evaluate  # noqa: E402
 from multiform.io import read_json, write_json  # noqa: E402
 from multiform.job import Job, JobConfig  # noqa: E402
 from multiform.model import SkillModel  # noqa: E402
 from multiform.stats import wilson  # noqa: E402
+from multiform.task import load_task  # noqa: E402
 
 
 def one_seed(task: str, out: Path, seed: int, trials: int, eval_seed: int, workers: int) -> dict:
     done = out / "seed_result.json"
     if done.exists():
-        return read_json(done, "seed result")
+        res = read_json(done, "seed result")
+        if "practice_trials" in res:          # a result written before practice was counted: finish it again
+            return res
     job = Job(task, out, JobConfig(seed=seed, workers=workers), log=lambda *a: None, progress=False)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -59,6 +67,9 @@ def one_seed(task: str, out: Path, seed: int, trials: int, eval_seed: int, worke
            "unpushed": [sum(t["success"] for t in unpushed), len(unpushed)],
            "pushed": [r["pushed"]["successes"], r["pushed"]["trials"]],
            "failures": dict(collections.Counter(t["outcome"] for t in detail if not t["success"])),
+           "practice_trials": sum(p["trials"] for p in practice.values()),
+           "robot_seconds": round(sum(p["robot_seconds"] for p in practice.values()), 1),
+           "mentor_labelled_trials": sum(p.get("mentor_labelled_trials", 0) for p in practice.values()),
            "minutes": round((time.perf_counter() - t0) / 60, 1)}
     write_json(done, res)
     return res
@@ -72,20 +83,47 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=200, help="evaluation trials per seed")
     ap.add_argument("--eval-seed", type=int, default=0, help="the evaluation trials every seed's skill meets")
     ap.add_argument("--workers", type=int, default=2)
+    add_option(ap)
     args = ap.parse_args()
-    rates = []
+    task = load_task(args.task)
+    rec = Record(__file__, "The main job's spread over job seeds", section="seeds", variant=task.TASK)
+    rows = []
     for seed in args.seeds:
         r = one_seed(args.task, Path(args.out) / f"seed_{seed}", seed, args.trials, args.eval_seed, args.workers)
+        rows.append(r)
         lo, hi = wilson(r["successes"], r["trials"])
-        rates.append(r["successes"] / r["trials"])
-        print(f"seed {seed}: {100 * rates[-1]:.1f} % ({r['successes']}/{r['trials']}; {100 * lo:.1f}-{100 * hi:.1f} %), "
-              f"unpushed {r['unpushed'][0]}/{r['unpushed'][1]}, pushed {r['pushed'][0]}/{r['pushed'][1]}; "
+        print(f"seed {seed}: {100 * r['successes'] / r['trials']:.1f} % ({r['successes']}/{r['trials']}; "
+              f"{100 * lo:.1f}-{100 * hi:.1f} %), unpushed {r['unpushed'][0]}/{r['unpushed'][1]}, "
+              f"pushed {r['pushed'][0]}/{r['pushed'][1]}; practice {r['practice_trials']} trials "
+              f"({r['mentor_labelled_trials']} with the mentor, {r['robot_seconds']:.0f} s of robot time); "
               f"failures {r['failures'] or '-'}; {r['minutes']} min", flush=True)
         for name, revs in r["revisions"].items():
             print(f"    {name}: {', '.join(revs) or 'no revision'}")
-    if rates:
+    if rows:
+        rates = [r["successes"] / r["trials"] for r in rows]
         print(f"over {len(rates)} seeds: median {100 * statistics.median(rates):.1f} %, "
-              f"range {100 * min(rates):.1f}-{100 * max(rates):.1f} % (target ≥ 95 %)")
+              f"range {100 * min(rates):.1f}-{100 * max(rates):.1f} % "
+              f"(target ≥ {100 * task.TARGET_SUCCESS_RATE:.0f} % for every seed)")
+        record_seeds(rec, task, rows, args.eval_seed)
+        rec.write(args.results)
+
+
+def record_seeds(rec: Record, task, rows: list[dict], eval_seed: int) -> None:
+    """Each seed's final success (unpushed / pushed, practice trials, robot time in practice), then the
+    median and range over the seeds, against the task's target for every seed."""
+    target = task.TARGET_SUCCESS_RATE
+    for r in rows:
+        rec.rate(f"seed_{r['seed']}", f"{task.TASK}, job seed {r['seed']}: the final skill on {r['trials']} "
+                 f"evaluation trials (evaluation seed {eval_seed})", r["successes"], r["trials"],
+                 target=at_least(target), counts={"unpushed": r["unpushed"], "pushed": r["pushed"]},
+                 extra={"practice_trials": r["practice_trials"], "mentor_labelled_trials": r["mentor_labelled_trials"],
+                        "robot_seconds_in_practice": r["robot_seconds"]})
+    rates = [r["successes"] / r["trials"] for r in rows]
+    rec.figure("median", f"{task.TASK}: median over job seeds {', '.join(str(r['seed']) for r in rows)}",
+               statistics.median(rates), "%", values={"median": statistics.median(rates), "min": min(rates),
+                                                       "max": max(rates)},
+               target=at_least(target, of="min", text=f"every seed ≥ {100 * target:g} %"))
+    rec.details["seeds"] = rows
 
 
 if __name__ == "__main__":

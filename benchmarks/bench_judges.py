@@ -21,7 +21,7 @@ accuracy with its Wilson 95 % interval, the confusion counts (mentor success = p
 Issue 5 asks ≥ 95 %.
 
     .venv/bin/python benchmarks/bench_judges.py --dataset runs/pendulum/demos.h5 --record 300 \\
-        --test-dataset runs/heldout.h5
+        --test-dataset runs/heldout.h5 [--results DIR]
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 
+from _results import Record, add_option, at_least
 from multiform.learn.judge import Judge
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -46,7 +47,7 @@ def report(place: str, judge: Judge, acc: float, n_test: int, seconds: float) ->
           f"on the '{judge.pool_.best_subset_}' features")
 
 
-def synthetic() -> None:
+def synthetic(rec: Record) -> None:
     sys.path.insert(0, str(ROOT))
     from tests.learn.synthetic import balanced_segments
 
@@ -55,7 +56,12 @@ def synthetic() -> None:
         test, yt = balanced_segments(place, 300, 2)
         t0 = time.perf_counter()
         j = Judge(place, ("theta", "omega", "x")).fit(train, y)
-        report(place, j, float((j.predict(test) == yt).mean()), len(yt), time.perf_counter() - t0)
+        right = int((j.predict(test) == yt).sum())
+        seconds = time.perf_counter() - t0
+        report(place, j, right / len(yt), len(yt), seconds)
+        rec.rate(f"synthetic_{place}", f"judge of {place} on synthetic pendulum-like segments (120 to train): "
+                 "held-out accuracy", right, len(yt),
+                 extra={"kernel": j.best_kernel_, "fit_s": round(seconds, 1)})
 
 
 def heldout_episodes(test_dataset: str | None, record: int, seed: int, task: str = "pendulum",
@@ -95,7 +101,7 @@ def _interval(k: int, n: int) -> str:
     return f"{k}/{n} = {k / n:.1%} (Wilson 95 % [{lo:.1%}, {hi:.1%}])" if n else "no segments"
 
 
-def dataset(path: str, skill: str, split: float, test: list[Any], seed: int, errors: bool) -> None:
+def dataset(path: str, skill: str, split: float, test: list[Any], seed: int, errors: bool, rec: Record) -> None:
     from multiform.demos.dataset import read_dataset
     from multiform.learn.labels import LabelStore
     from multiform.learn.training import demo_segments, fit_judge, judged_places, mentor_records
@@ -136,6 +142,10 @@ def dataset(path: str, skill: str, split: float, test: list[Any], seed: int, err
               f"'{judge.pool_.best_subset_}' features "
               f"({', '.join(judge.feature_names_[c] for c in judge.pool_.columns_)})")
         print(f"   held-out accuracy {_interval(tp + tn, len(y))}  (target ≥ 95 %)")
+        rec.rate(f"heldout_{place}", f"judge of {place} ({skill}), trained on {len(eps)} demos' labels, on "
+                 f"{len(test)} held-out demos: accuracy", tp + tn, len(y), target=at_least(0.95),
+                 counts={"on the mentor's successes": [tp, tp + fn], "on its failures": [tn, tn + fp]},
+                 extra={"kernel": judge.best_kernel_, "features": judge.pool_.best_subset_})
         print(f"   confusion (mentor success = positive): TP {tp}  FN {fn}  FP {fp}  TN {tn}; "
               f"on the mentor's successes {_interval(tp, tp + fn)}, on its failures {_interval(tn, tn + fp)}")
         if errors:
@@ -161,12 +171,16 @@ def main() -> None:
     ap.add_argument("--split", type=float, default=0.7, help="without held-out demos: fraction of demos for training")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--errors", action="store_true", help="list the misclassified held-out segments")
+    add_option(ap)
     args = ap.parse_args()
+    rec = Record(__file__, "Judges: held-out accuracy", section="components",
+                 variant="dataset" if args.dataset else "synthetic")
     if args.dataset:
         test = heldout_episodes(args.test_dataset, args.record, args.test_seed, workers=args.workers)
-        dataset(args.dataset, args.skill, args.split, test, args.seed, args.errors)
+        dataset(args.dataset, args.skill, args.split, test, args.seed, args.errors, rec)
     else:
-        synthetic()
+        synthetic(rec)
+    rec.write(args.results)
 
 
 if __name__ == "__main__":

@@ -15,7 +15,7 @@ held-out error and closed-loop success need not agree, and one fit says little.
 
     .venv/bin/python benchmarks/bench_law_fits.py RUN/model --law swing_up --inducing 300 1000 2000 \\
         --trials 60 --pushed-only [--subset-noise 0 1] [--hyper-subsets 1 7] [--mean skill linear] \\
-        [--fit-seeds 0 1 2] [--seed 0] [--max-train 20000] [--out /tmp/law_fits] [--json fits.json]
+        [--fit-seeds 0 1 2] [--seed 0] [--max-train 20000] [--out /tmp/law_fits] [--json fits.json] [--results DIR]
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import numpy as np  # noqa: E402
+from _results import Record, add_option  # noqa: E402
 
 from multiform.evaluation import Evaluator, Variant  # noqa: E402
 from multiform.learn.training import LawSettings, fit_law  # noqa: E402
@@ -103,7 +104,9 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default=None, help="keep the refitted model copies here")
     ap.add_argument("--json", default=None, help="write every fit's figures here")
+    add_option(ap)
     a = ap.parse_args()
+    rec = Record(__file__, "How one law's fit shows in closed loop", section="components", variant=f"{a.task}_{a.law}")
     task = load_task(a.task)
     specs = task.evaluation_specs(400, a.seed, 0.5)
     specs = [s for s in specs if s.push or not a.pushed_only][: a.trials]
@@ -137,8 +140,15 @@ def main() -> None:
             rows.append({"inducing": m, "subset_noise": bool(sn), "hyper_subsets": hs, "mean": mean, "fit_seed": fs,
                          "n_fit": info["n_fit"], "heldout_nrmse": info["heldout_nrmse"], "trials": r["trials"],
                          "failed": len(failed), "failed_seeds": failed, "probes": dict(probes)})
+            rec.rate(name, f"{a.task} law {a.law} refitted: {m} inducing points, {'subset' if sn else 'fitted'} noise, "
+                     f"hyperparameters of {hs} subset(s), {mean} mean, fitting seed {fs}: success on "
+                     f"{'pushed ' if a.pushed_only else ''}evaluation trials of job seed {a.seed}",
+                     r["trials"] - len(failed), r["trials"],
+                     extra={"heldout_nrmse": round(info["heldout_nrmse"], 3), "samples": info["n_fit"]})
     if a.json:
         Path(a.json).write_text(json.dumps({"model": a.model, "law": a.law, "seed": a.seed, "fits": rows}, indent=1))
+    rec.details["fits"] = rows
+    rec.write(a.results)
     if not a.out:
         shutil.rmtree(root)
 

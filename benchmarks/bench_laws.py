@@ -12,7 +12,7 @@ in closed loop.
    randomised pendulums (reference controller, so only the law differs): success = the pendulum
    reaches |θ| < 0.3 rad with |ω| < 2.5 rad/s within 12 s.
 
-    .venv/bin/python benchmarks/bench_laws.py [--dataset runs/pendulum/demos.h5] [--trials 50]
+    .venv/bin/python benchmarks/bench_laws.py [--dataset runs/pendulum/demos.h5] [--trials 50] [--results DIR]
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
+from _results import Record, add_option, at_most  # noqa: E402
 
 import multiform.envs  # noqa: E402,F401
 from multiform.demos.dataset import read_dataset  # noqa: E402
@@ -80,7 +81,9 @@ def main() -> None:
     ap.add_argument("--dataset", default=str(ROOT / "runs" / "pendulum" / "demos.h5"))
     ap.add_argument("--demos", type=int, default=40, help="demos to record if --dataset does not exist")
     ap.add_argument("--trials", type=int, default=50)
+    add_option(ap)
     args = ap.parse_args()
+    rec = Record(__file__, "The pendulum's GP laws against the mentor", section="components")
     if Path(args.dataset).exists():
         eps = list(read_dataset(args.dataset))
     else:
@@ -91,15 +94,24 @@ def main() -> None:
     for name in apn.laws:
         law, info = fit_law(apn, eps, name)
         d = law_data(apn, eps, name, success_only=True)
+        floor = noise_floor(d.X, d.Y)
         print(f"law {name}: n={info['n']}, held-out NRMSE {info['heldout_nrmse']:.3f} (target <= 0.2); "
-              f"the mentor's own noise floor (k-NN on the same samples) {noise_floor(d.X, d.Y):.3f}")
+              f"the mentor's own noise floor (k-NN on the same samples) {floor:.3f}")
+        rec.figure(f"nrmse_{name}", f"pendulum law {name} from {len(eps)} demos: held-out NRMSE (successful segments "
+                   "of unseen demos)", info["heldout_nrmse"], "", target=at_most(0.2),
+                   extra={"mentor_noise_floor": round(floor, 3), "samples": info["n"]})
     ok_law, _ = fit_law(apn, eps, "swing_up", success_only=True)
     all_law, _ = fit_law(apn, eps, "swing_up", success_only=False)
     a = closed_loop(apn, ok_law, args.trials)
     b = closed_loop(apn, all_law, args.trials)
+    rec.rate("closed_loop_success_only", f"swing-up from hanging in closed loop, law fitted on successful segments "
+             f"only ({len(eps)} demos)", a["successes"], a["trials"])
+    rec.rate("closed_loop_all_segments", "the same, law fitted on all segments (failed ones included)",
+             b["successes"], b["trials"])
     print(f"swing-up in closed loop, {args.trials} seeded trials: success-only law {a['successes']}/{a['trials']} "
           f"({100 * a['rate']:.0f} %, 95 % CI {100 * a['low']:.0f}-{100 * a['high']:.0f}); all-segments law "
           f"{b['successes']}/{b['trials']} ({100 * b['rate']:.0f} %, 95 % CI {100 * b['low']:.0f}-{100 * b['high']:.0f})")
+    rec.write(args.results)
 
 
 if __name__ == "__main__":

@@ -3,6 +3,7 @@ speeds the flip needs, and a feasibility check that the flip is learnable from t
 
     .venv/bin/python benchmarks/bench_nunchaku.py                 # all parts, moderate sizes
     .venv/bin/python benchmarks/bench_nunchaku.py --stability 1000 --demos 60 --trials 100
+    .venv/bin/python benchmarks/bench_nunchaku.py ... --results DIR  # where the JSON record goes
 
 Feasibility: one simple regressor per law (scikit-learn GP, ARD squared-exponential + noise, fitted
 on a random subset of the law's samples from the mentor's *successful* segments; predictions in
@@ -19,6 +20,7 @@ import time
 import warnings
 
 import numpy as np
+from _results import Record, add_option, at_most
 
 from multiform.tasks.nunchaku_mentor import NunchakuMentor
 from multiform.teach.record import record_episode
@@ -30,7 +32,7 @@ AUBO_WRIST_SPEED = 2.6        # rad/s, joints 4-6
 AUBO_REACH = 0.8865           # m
 
 
-def sim_speed(seconds: float = 3.0) -> None:
+def sim_speed(rec: Record, seconds: float = 3.0) -> None:
     import mujoco
     env = NunchakuEnv()
     env.reset(seed=0)
@@ -62,9 +64,12 @@ def sim_speed(seconds: float = 3.0) -> None:
           f"p99 {np.percentile(s, 99):.0f} µs -> {1e6 / np.median(s):.0f} steps/s, "
           f"{1e3 / np.median(s):.1f}x real time")
     print(f"mj_step alone: median {np.median(raw):.0f} µs, p99 {np.percentile(raw, 99):.0f} µs")
+    rec.latency("step", "Nunchaku-v0: env.step (physics + servo + magnet + load EKF + observation) under the "
+                "scripted mentor", s / 1e6, extra={"real_time_factor": round(1e3 / np.median(s), 1)}, section="speed")
+    rec.latency("mj_step", "Nunchaku-v0: mj_step alone", raw / 1e6, section="speed")
 
 
-def stability(n: int, duration: float = 1.5) -> None:
+def stability(n: int, rec: Record, duration: float = 1.5) -> None:
     """Randomised nunchakus, alternately under random hand/wrist motion with magnet switching and
     under the scripted flip with doubled noise and frequent fumbles."""
     env = NunchakuEnv(settle=0.0)
@@ -105,6 +110,9 @@ def stability(n: int, duration: float = 1.5) -> None:
     print(f"stability: {n} randomised trials ({steps * env.dt:.0f} s simulated; half random hand/wrist motion "
           f"with magnet switching, half noisy scripted flips): {diverged} diverged (NaN/explosion), "
           f"{dropped} dropped the nunchaku ({time.time() - t0:.0f} s)")
+    rec.rate("diverged", "Nunchaku-v0: randomised trials that diverged (NaN or explosion), half random hand and "
+             "wrist motion with magnet switching, half noisy scripted flips", diverged, n, section="tasks",
+             counts={"dropped the nunchaku": [dropped, n]}, extra={"simulated_s": round(steps * env.dt)})
 
 
 def demos(n: int, failure_rate: float, seed0: int = 20_000):
@@ -129,7 +137,7 @@ def demos(n: int, failure_rate: float, seed0: int = 20_000):
     return eps, np.array(errors), np.array(rate_err), fumbles
 
 
-def flip_speeds(eps) -> None:
+def flip_speeds(eps, rec: Record) -> None:
     v, a, w, al = [], [], [], []
     for ep in eps:
         if ep.outcome != "success":
@@ -149,6 +157,10 @@ def flip_speeds(eps) -> None:
     print(f"  AUBO i5: wrist joints <= {AUBO_WRIST_SPEED} rad/s (the flip needs {np.median(w) / AUBO_WRIST_SPEED:.1f}x), "
           f"shoulder/elbow <= {AUBO_JOINT_SPEED} rad/s: at most {AUBO_JOINT_SPEED * AUBO_REACH:.1f} m/s at full reach "
           "-> the arm cannot flip it; the env uses an actuated 6-DoF base")
+    rec.figure("hand_speed", "the mentor's successful flips: peak hand speed, median", float(np.median(v)), "m/s",
+               section="tasks", extra={"max": round(float(max(v)), 2)})
+    rec.figure("wrist_rate", "the mentor's successful flips: peak wrist rate, median", float(np.median(w)), "rad/s",
+               section="tasks", extra={"max": round(float(max(w)), 1), "aubo_i5_wrist_limit": AUBO_WRIST_SPEED})
 
 
 class SubsetGP:
@@ -179,7 +191,7 @@ class SubsetGP:
         return (self.amp * np.exp(-0.5 * d2)) @ self.alpha * self.sy + self.my
 
 
-def feasibility(eps, trials: int, n_fit: int) -> None:
+def feasibility(eps, trials: int, n_fit: int, rec: Record) -> None:
     from multiform.learn.views import law_data
     from multiform.petri.skillfile import load_skill
     from multiform.runtime.executor import Executor
@@ -208,6 +220,9 @@ def feasibility(eps, trials: int, n_fit: int) -> None:
     print(f"  learned flip closed loop on estimates: {k}/{trials} = {k / trials:.0%} "
           f"(Wilson 95% {lo:.0%}-{hi:.0%}); outcomes {outcomes}; last transition {stops}; "
           f"{sim / wall:.1f}x real time")
+    rec.rate("feasibility", f"feasibility: a flip learned by a stand-in regressor (scikit-learn GP on <= {n_fit} "
+             "samples per law) in closed loop on the robot's estimates", k, trials, section="tasks",
+             extra={"outcomes": outcomes})
 
 
 def main() -> None:
@@ -218,18 +233,24 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=40, help="closed-loop trials of the feasibility check")
     ap.add_argument("--fit", type=int, default=500, help="samples per law for the feasibility GP")
     ap.add_argument("--skip", default="", help="comma-separated parts to skip: speed,stability,feasibility")
+    add_option(ap)
     args = ap.parse_args()
+    rec = Record(__file__, "The nunchaku: simulation, estimation from load, the mentor, feasibility", section="tasks")
     skip = set(filter(None, args.skip.split(",")))
     if "speed" not in skip:
-        sim_speed()
+        sim_speed(rec)
     if "stability" not in skip:
-        stability(args.stability)
+        stability(args.stability, rec)
     t0 = time.time()
     eps, err, rate_err, fumbles = demos(args.demos, args.failure_rate)
     rms = float(np.sqrt(np.mean(err ** 2)))
     print(f"estimation from load, during the swing ({len(err)} samples of up to 20 demos): free-rod angle "
           f"RMS {rms:.3f} rad (p95 {np.percentile(np.abs(err), 95):.3f}), rate RMS "
           f"{np.sqrt(np.mean(rate_err ** 2)):.2f} rad/s -> {'meets' if rms <= 0.1 else 'MISSES'} the 0.1 rad target")
+    rec.figure("estimate_phi", "estimation from the wrist load during the swing: free-rod angle error, RMS", rms, "rad",
+               target=at_most(0.1), extra={"p95_rad": round(float(np.percentile(np.abs(err), 95)), 3),
+                                           "rate_rms_rad_per_s": round(float(np.sqrt(np.mean(rate_err ** 2))), 2),
+                                           "samples": len(err)})
     ok = sum(e.outcome == "success" for e in eps)
     clean = [e for e, f in zip(eps, fumbles) if not f]
     ok_clean = sum(e.outcome == "success" for e in clean)
@@ -237,9 +258,12 @@ def main() -> None:
     print(f"scripted mentor: {ok}/{len(eps)} flips = {ok / len(eps):.0%} (Wilson 95% {lo:.0%}-{hi:.0%}) with "
           f"fumble rate {args.failure_rate}; without a fumble {ok_clean}/{len(clean)}; "
           f"{time.time() - t0:.0f} s")
-    flip_speeds(eps)
+    rec.rate("mentor", f"the scripted mentor's flips (fumble probability {args.failure_rate})", ok, len(eps),
+             counts={"without a fumble": [ok_clean, len(clean)]})
+    flip_speeds(eps, rec)
     if "feasibility" not in skip:
-        feasibility(eps, args.trials, args.fit)
+        feasibility(eps, args.trials, args.fit, rec)
+    rec.write(args.results)
 
 
 if __name__ == "__main__":

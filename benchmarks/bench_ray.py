@@ -9,7 +9,7 @@ minus the trial's own closed-loop time: scheduling, grading, moving the record b
 start Ray, and the wall time of a 10,000-trial evaluation extrapolated from the measured rates.
 Also checks that both gave the same trials.
 
-    .venv/bin/python benchmarks/bench_ray.py [--model DIR] [--trials 16] [--cpus 2] [--rounds 2]
+    .venv/bin/python benchmarks/bench_ray.py [--model DIR] [--trials 16] [--cpus 2] [--rounds 2] [--results DIR]
 
 Without ``--model`` it first trains a small model (4 mentor demos, the bundled pendulum skill) in a
 temporary folder (about a minute); its trials run to the skill's time limit, as a weak model's do.
@@ -30,6 +30,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 os.environ.setdefault("MUJOCO_GL", "egl")
 warnings.filterwarnings("ignore", message="A single label was found", category=UserWarning)
 
+from _results import Record, add_option, at_least  # noqa: E402
 from multiform.evaluation import Evaluator, Variant  # noqa: E402
 from multiform.task import load_task  # noqa: E402
 task = load_task("pendulum")
@@ -68,7 +69,9 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=16)
     ap.add_argument("--cpus", type=int, default=2)
     ap.add_argument("--rounds", type=int, default=2)
+    add_option(ap)
     args = ap.parse_args()
+    rec = Record(__file__, "Evaluation trials per second: the local process pool against Ray", section="speed")
     with tempfile.TemporaryDirectory(prefix="bench_ray_") as tmp:
         model = Path(args.model) if args.model else small_model(Path(tmp))
         variant = Variant("bench", str(model.resolve()))
@@ -95,10 +98,22 @@ def main() -> None:
     print(f"Ray / local pool: median {ratio:.2f} over {args.rounds} rounds (target >= 0.85); Ray's extra overhead "
           f"{1e3 * (ray['overhead'] - local['overhead']):.0f} ms per trial")
     print(f"same trials on both: {same}")
+    model_text = "the given model" if args.model else "a small model (4 demos)"
+    for key, name, r in (("local", "local process pool", local), ("ray", "Ray", ray)):
+        rec.figure(f"rate_{key}", f"pendulum evaluation trials of {model_text} on {args.cpus} CPUs, {name}: trials "
+                   f"per second (median of {args.rounds} rounds of {args.trials})", r["rate"], "trials/s",
+                   extra={"overhead_ms_per_trial": round(1e3 * r["overhead"]), "first_start_s": round(r["startup"], 1),
+                          "closed_loop_s_per_trial": round(r["own"], 2)})
+    rec.figure("ratio", "Ray / local pool, trials per second (median over the rounds)", ratio, "",
+               target=at_least(0.85))
+    rec.figure("same_trials", "both backends gave the same trials, record for record", same, "",
+               target="the same", met=same)
     for name, r in (("local pool", local), ("Ray", ray)):
         hours = 10_000 / r["rate"] / 3600
         print(f"10,000 trials (extrapolated from the measured rate): {name} {hours:.1f} h on {args.cpus} CPUs; "
               f"{hours * args.cpus / 64 * 60:.0f} min on a 64-CPU cluster at the same rate per CPU")
+    rec.details["rounds"] = [{"local": lo["rate"], "ray": ra["rate"]} for lo, ra in rounds]
+    rec.write(args.results)
 
 
 if __name__ == "__main__":

@@ -17,7 +17,9 @@ leave it alone.
 
 ``RUN/model`` is any trained model of the task (e.g. a ``multiform demo`` run's ``model``
 directory, or ``multiform train``'s output); its own skill file is not used. Results go to
-``OUT/results.json`` (one record per fault and seed, written after each) and a table on stdout.
+``OUT/results.json`` (one record per fault and seed, written after each) and a table on stdout; the
+summary of every fault in ``OUT/results.json`` to ``benchmarks/results/bench_repair.json``
+(``--results DIR``).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import argparse
 import copy
 import json
 import shutil
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -33,6 +36,9 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import Record, add_option  # noqa: E402
 
 
 @dataclass(frozen=True)
@@ -183,7 +189,7 @@ def run_one(base: Path, task_name: str, kind: Kind | None, strength: Any, seed: 
         "what": kind.what if kind else "the sound skill", "cannot": kind.cannot if kind else "",
         "practice_trials": len(state.trials), "failed_trials": sum(not t.success for t in state.trials),
         "first_failure": first_fail, "reached_streak": streak, "stop_reason": state.stop_reason,
-        "revisions": [{"version": r.version, "operator": r.operator, "target": r.target,
+        "revisions": [{"version": r.version, "operator": r.operator, "target": r.target, "after_trial": r.after_trial,
                        "candidate": _candidate(history, r.version), "reason": r.reason[:300]} for r in revs],
         "tried": list(state.tried), "reverted": sorted(reverted), "kept": kept,
         "no_operator": sum(r.operator == "none" for r in state.revisions),
@@ -231,11 +237,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--eval-trials", type=int, default=100)
     p.add_argument("--workers", type=int, default=1)
     p.add_argument("--list", action="store_true", help="list the kinds and exit")
+    add_option(p)
     a = p.parse_args(argv)
     if a.list:
         for k in KINDS:
             print(f"{k.task:9s} {k.name:28s} strengths {k.strengths}: {k.what}" + (f" [cannot: {k.cannot}]" if k.cannot else ""))
         return 0
+    record = Record(__file__, "Repair of injected mistakes", section="repair",
+                    argv=None if argv is None else [__file__, *argv])
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     wanted = None if a.kinds == "all" else set(a.kinds.split(","))
@@ -264,7 +273,46 @@ def main(argv: list[str] | None = None) -> int:
             results.append(rec)
             results_path.write_text(json.dumps(results, indent=1))
     _table(results)
+    record_summary(record, results)
+    record.write(a.results)
     return 0
+
+
+def record_summary(rec: Record, results: list[dict[str, Any]]) -> None:
+    """Per task (and over both): of the injected faults, how many made practice fail, were repaired
+    before practice (the demonstrations replayed), reached the success streak, and ended within 5
+    points of the sound skill on the evaluation trials; the evaluation trials of all of them; the
+    sound skill's own."""
+    sound = {(r["task"], r["seed"]): r["eval"]["rate"] for r in results if r["kind"] == "none" and "eval" in r}
+    tasks = sorted({r["task"] for r in results}, key=lambda t: (t != "pendulum", t))
+    for task in tasks + (["all"] if len(tasks) > 1 else []):
+        faults = [r for r in results if r["kind"] != "none" and task in ("all", r["task"])]
+        what = f"{task}: of {len(faults)} injected faults" if task != "all" else f"all tasks: of {len(faults)} faults"
+        if faults:
+            rec.rate(f"{task}_made_fail", f"{what}, those that made practice fail",
+                     sum(r["first_failure"] is not None for r in faults), len(faults))
+            rec.rate(f"{task}_before_practice", f"{what}, those repaired before the first trial (the demonstrations "
+                     "replayed through the net)",
+                     sum(any(str(v.get("candidate", "")).startswith("demonstrations:") for v in r["revisions"])
+                         for r in faults), len(faults))
+            rec.rate(f"{task}_streak", f"{what}, those after which practice reached its success streak",
+                     sum(bool(r["reached_streak"]) for r in faults), len(faults))
+        judged = [r for r in faults if "eval" in r and (r["task"], r["seed"]) in sound]
+        if judged:
+            rec.rate(f"{task}_within_5", f"{what}, those whose final skill ends within 5 points of the sound skill "
+                     "on the same evaluation trials", sum(r["eval"]["rate"] >= sound[(r["task"], r["seed"])] - 0.05
+                                                          for r in judged), len(judged))
+        evaluated = [r for r in faults if "eval" in r]
+        if evaluated:
+            rec.rate(f"{task}_eval", f"{what}, the final skills' evaluation trials",
+                     sum(r["eval"]["successes"] for r in evaluated), sum(r["eval"]["trials"] for r in evaluated))
+        sounds = [r for r in results if r["kind"] == "none" and "eval" in r and task in ("all", r["task"])]
+        if sounds and task != "all":
+            rec.rate(f"{task}_sound", f"{task}: the sound skill's evaluation trials (practice leaves it alone: "
+                     f"{sum(not r['revisions'] for r in sounds)} of {len(sounds)} runs made no revision)",
+                     sum(r["eval"]["successes"] for r in sounds), sum(r["eval"]["trials"] for r in sounds))
+    rec.details["faults"] = [{k: r.get(k) for k in ("task", "kind", "strength", "seed", "first_failure", "reached_streak",
+                                                     "kept", "eval", "practice_trials")} for r in results]
 
 
 def _table(results: list[dict[str, Any]]) -> None:

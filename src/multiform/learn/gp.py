@@ -208,7 +208,7 @@ class GPLaw(GPPrediction, BaseEstimator, RegressorMixin):
         all n samples with the same noise trusts each demonstration's idiosyncrasies n / n_hyper times
         over, and a sparse posterior then swings with its inducing points (a pendulum swing-up from 10
         demonstrations, n = 98,020: held-out NRMSE 0.32 with 300 inducing points, 0.51–0.53 with 1,000
-        or 2,000; with the scaled noise 0.32–0.33 for all three; docs/measurements.md).
+        or 2,000; with the scaled noise 0.32–0.33 for all three; docs/measurements-log.md).
         """
         scale = self.n_train_ / min(self.n_train_, self.n_hyper) if self.subset_noise else 1.0
         return self.noise_ * float(np.sqrt(max(scale, 1.0)))

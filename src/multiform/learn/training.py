@@ -63,7 +63,7 @@ class LawSettings:
                                      # subset, 10 demos' swing-up laws hung on which 1,000 samples it drew
     max_train: int = 100000          # a random subset above this: 10 demos (80-100k samples a law) are kept whole,
                                      # so the few samples of rare states stay; 40 demos' 330k all kept gave 90.5 %,
-                                     # 100k 99.0 % (the three together: docs/measurements.md)
+                                     # 100k 99.0 % (the three together: docs/measurements-log.md)
     mean: str | None = None          # GP mean function; None: the skill file's choice per law
     own_ratio: float = 1.0           # the robot's own samples at most this many times the mentor's (a random
                                      # subset): on-policy swing-ups from hanging, 5x the mentor's data, drowned

@@ -123,7 +123,7 @@ def replay_trace(path: str | os.PathLike, model_dir: str | os.PathLike | None = 
                 env.close()
                 raise InvalidInput(f"running trial seed {trace.seed} again with net version {trace.net_version} "
                                    f"does not give the recorded trial (largest state difference {err:.3g}; a push "
-                                   f"during the trial is not kept in its trace); replay it without --model to see "
+                                   f"during the trial is not stored in its trace); replay it without --model to see "
                                    f"its series, marking and firings without the scene", file=str(path))
             snaps = list(again.qpos)
     tags = trace.tags()
