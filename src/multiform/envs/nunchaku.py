@@ -128,50 +128,20 @@ def model_path() -> str:
     return str(resources.files("multiform") / "envs" / "assets" / "nunchaku.xml")
 
 
+class NunchakuHand:
+    """The MuJoCo scene of a hand on a 6-DoF base, with a magnet palm and a wrist F/T sensor, and a
+    nunchaku: the episode's parameters (rod length and mass, friction, chain damping), the start
+    pose, and the magnet that grips a rod within ``capture`` [m] of the palm. :class:`NunchakuEnv`
+    is its Gymnasium API."""
 
-class NunchakuEnv(gym.Env):
-    """A hand on a 6-DoF base with a magnet palm and a wrist F/T sensor, holding a nunchaku.
-
-    ``max_duration`` [s] truncates an episode; ``capture`` [m] is the magnet's reach from the palm;
-    ``width``/``height`` size the ``rgb_array`` frames, ``shadows`` False renders them without
-    shadows (much cheaper on a CPU renderer). ``dt`` is 0.001 s (one control step = one physics step)
-    times ``frame_skip`` (default 1; physics steps per env step, the action held, as in
-    :class:`multiform.envs.arm_pendulum.ArmPendulumEnv`: for control at a lower rate and videos).
-    """
-
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 1000}       # one frame per step: 1000 / frame_skip
-    observation_names = OBSERVATION_NAMES
-    command_names = COMMAND_NAMES
-
-    def __init__(self, render_mode: str | None = None, max_duration: float = 15.0, capture: float = 0.03,
-                 settle: float = 0.25, width: int = 480, height: int = 360, shadows: bool = True,
-                 normalize_actions: bool = False, frame_skip: int = 1):
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None")
-        self.frame_skip = check_frame_skip(frame_skip)
-        self.render_mode = render_mode
-        self.max_duration = float(max_duration)
+    def __init__(self, capture: float = 0.03):
         self.capture = float(capture)
-        self.settle = float(settle)
-        self.width, self.height = int(width), int(height)
-        self.shadows = bool(shadows)
         self.model = mujoco.MjModel.from_xml_path(model_path())
         # no silent reset on bad values: a non-finite state ends the step as ``non_finite``
         self.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
         self.data = mujoco.MjData(self.model)
         self._h = float(self.model.opt.timestep)          # one physics step
-        self.dt = self._h * self.frame_skip                # one env step
-        self.metadata = {**type(self).metadata, "render_fps": int(round(1.0 / self.dt))}
         m = self.model
-        self.action_space = gym.spaces.Box(np.array([-3.0, -3.0, -20.0, 0.0]), np.array([3.0, 3.0, 20.0, 1.0]),
-                                           dtype=np.float64)
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (len(OBSERVATION_NAMES),), dtype=np.float64)
-        self._obs = np.zeros(len(OBSERVATION_NAMES))
-        self._action_box: tuple[np.ndarray, np.ndarray] | None = None
-        if normalize_actions:
-            self._action_box = (self.action_space.low.copy(), self.action_space.high.copy())
-            self.action_space = gym.spaces.Box(-1.0, 1.0, (len(COMMAND_NAMES),), dtype=np.float64)
-        self._flip = {"released": False, "touched": False, "held_b": 0, "done": False}
         self._hand = m.body("hand").id
         self._rods = (m.body("rod_a").id, m.body("rod_b").id)
         self._links = tuple(m.body(f"link{i}").id for i in range(1, 7))
@@ -194,8 +164,6 @@ class NunchakuEnv(gym.Env):
             "body_ipos": m.body_ipos.copy(), "geom_friction": m.geom_friction.copy(),
             "dof_damping": m.dof_damping.copy()}
         self.estimator = LoadEstimator()
-        self._renderer: mujoco.Renderer | None = None
-        self._camera: mujoco.MjvCamera | None = None
         self.params: dict[str, float] = dict(NOMINAL)
         self._ref = [0.0, 0.0, 0.0]
         self._half = [ROD_LENGTH / 2, ROD_LENGTH / 2]
@@ -205,45 +173,30 @@ class NunchakuEnv(gym.Env):
         self._omega = 0.0
         self._load = 0.0
         self._prev_v = (0.0, 0.0, 0.0)
-        self._ft_noise = 0.05
-        self._steps = 0
 
-    # ------------------------------------------------------------------ reset
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        super().reset(seed=seed)
-        p = self._draw_params(dict(options or {}))
-        self.params = p
-        self._apply_params(p)
-        self._place(p)
-        obs = self._observe(0.0, 0.0, 0.0, estimate=False)
-        obs = self._settle(obs)
-        self._steps = 0
-        self._flip = {"released": False, "touched": False, "held_b": 0, "done": False}
-        return obs, self._info(False)
-
-    def _draw_params(self, options: dict[str, Any]) -> dict[str, float]:
-        """This episode's parameters: those the reset options fix, the others drawn from ``RANGES``
-        (or nominal without ``randomize``); sets the force sensor's noise (``ft_noise``)."""
-        randomize = bool(options.pop("randomize", True))
-        self._ft_noise = float(options.pop("ft_noise", 0.05))
-        unknown = set(options) - set(RANGES)
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; known: {sorted(RANGES)}, "
-                             "randomize, ft_noise")
-        p = {}
-        for k, (lo, hi) in RANGES.items():
-            if k in options:
-                p[k] = float(options[k])
-            elif randomize:
-                p[k] = float(self.np_random.uniform(lo, hi))
-            else:
-                p[k] = NOMINAL[k]
-        bad = {k: v for k, v in p.items() if not math.isfinite(v)
-               or (k in ("rod_mass", "rod_length", "friction") and not v > 0) or (k == "chain_damping" and v < 0)}
-        if bad or not (math.isfinite(self._ft_noise) and self._ft_noise >= 0):
-            raise ValueError(f"reset options out of range: {bad or {'ft_noise': self._ft_noise}} (all finite; rod mass, "
-                             "rod length and friction above 0; chain damping and ft_noise at least 0)")
-        return p
+    def _apply_params(self, p: dict[str, float]) -> None:
+        m, nom = self.model, self._nominal
+        for k in ("geom_size", "geom_pos", "body_pos", "body_mass", "body_inertia", "body_ipos",
+                  "geom_friction", "dof_damping"):
+            getattr(m, k)[:] = nom[k]
+        s, ms = p["rod_length"], p["rod_mass"]
+        half = ROD_LENGTH / 2 * s
+        self._half = [half, half]
+        ga, gb = self._geom_rod
+        ra, rb = self._rods
+        m.geom_size[ga, 1] = m.geom_size[gb, 1] = half - ROD_RADIUS
+        m.geom_pos[gb, 2] = -half
+        m.body_ipos[rb, 2] = -half
+        m.body_pos[self._links[0], 0] = half
+        for b in (ra, rb):
+            m.body_mass[b] = nom["body_mass"][b] * ms
+            inertia = nom["body_inertia"][b] * ms
+            order = np.argsort(inertia)
+            inertia[order[1:]] *= s * s
+            m.body_inertia[b] = inertia
+        m.geom_friction[:, 0] = nom["geom_friction"][:, 0] * p["friction"]
+        for dof in self._ball_dof:
+            m.dof_damping[dof:dof + 3] = p["chain_damping"]
 
     def _place(self, p: dict[str, float]) -> None:
         """The hand where ``p`` puts it, rod A held on the palm (welded), rod B hanging at ``swing``;
@@ -279,118 +232,6 @@ class NunchakuEnv(gym.Env):
         self.estimator.reset(pivot=(0.065 + p["grip_offset"], HELD_Z), held_com=(cx, HELD_Z),
                              angle=0.0, angle_std=0.25)
         self._phi, self._omega, self._load = 0.0, 0.0, 0.0
-
-    def _settle(self, obs: np.ndarray) -> np.ndarray:
-        """The robot has just picked the nunchaku up and holds still for a moment; it weighs it (the
-        wrist's vertical load minus the hand's own weight) so the estimator's masses fit. Returns
-        the observation after."""
-        n_settle = int(round(self.settle / self._h))
-        load = 0.0
-        hold = np.array([0.0, 0.0, 0.0, 1.0])
-        for _ in range(n_settle):
-            obs, _, terminated, _, _ = self._step(hold)
-            if terminated:
-                break
-            load += self.wrist_vertical_load()
-        if n_settle:
-            hand_weight = self.model.body_mass[self._hand] * 9.81
-            self.estimator.weigh(load / n_settle - hand_weight)
-        return obs
-
-    def _apply_params(self, p: dict[str, float]) -> None:
-        m, nom = self.model, self._nominal
-        for k in ("geom_size", "geom_pos", "body_pos", "body_mass", "body_inertia", "body_ipos",
-                  "geom_friction", "dof_damping"):
-            getattr(m, k)[:] = nom[k]
-        s, ms = p["rod_length"], p["rod_mass"]
-        half = ROD_LENGTH / 2 * s
-        self._half = [half, half]
-        ga, gb = self._geom_rod
-        ra, rb = self._rods
-        m.geom_size[ga, 1] = m.geom_size[gb, 1] = half - ROD_RADIUS
-        m.geom_pos[gb, 2] = -half
-        m.body_ipos[rb, 2] = -half
-        m.body_pos[self._links[0], 0] = half
-        for b in (ra, rb):
-            m.body_mass[b] = nom["body_mass"][b] * ms
-            inertia = nom["body_inertia"][b] * ms
-            order = np.argsort(inertia)
-            inertia[order[1:]] *= s * s
-            m.body_inertia[b] = inertia
-        m.geom_friction[:, 0] = nom["geom_friction"][:, 0] * p["friction"]
-        for dof in self._ball_dof:
-            m.dof_damping[dof:dof + 3] = p["chain_damping"]
-
-    # ------------------------------------------------------------------- step
-    def step(self, action):
-        if self.frame_skip == 1:
-            return self._physics_step(action)
-        return skip_frames(self._physics_step, action, self.frame_skip)
-
-    def _physics_step(self, action):
-        if self._action_box is not None:
-            lo, hi = self._action_box
-            action = lo + (np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0) + 1.0) * 0.5 * (hi - lo)
-        obs, _, terminated, truncated, info = self._step(action)
-        done_before = self._flip["done"]
-        if not info["diverged"]:
-            self._track_flip()
-        info["is_success"] = self._flip["done"]
-        return obs, float(self._flip["done"] and not done_before), terminated, truncated, info
-
-    def _track_flip(self) -> None:
-        f = self._flip
-        if self._held < 0:
-            f["released"] = True
-            f["touched"] = f["touched"] or self.back_of_hand_touch() > FLIP_TOUCH
-        f["held_b"] = f["held_b"] + 1 if self._held == 1 else 0
-        if f["released"] and f["touched"] and f["held_b"] * self._h >= FLIP_HOLD - 1e-9:
-            f["done"] = True
-
-    def _step(self, action):
-        m, d = self.model, self.data
-        dt = self._h
-        vx = min(max(float(action[0]), -3.0), 3.0)
-        vz = min(max(float(action[1]), -3.0), 3.0)
-        wq = min(max(float(action[2]), -20.0), 20.0)
-        magnet = float(action[3]) > 0.5
-        qpos = d.qpos
-        rx, rz, rq = self._ref
-        x, z, q = qpos[self._qx], qpos[self._qz], qpos[self._qq]
-        rx = min(max(rx + vx * dt, x - 0.05, -WORKSPACE), x + 0.05, WORKSPACE)
-        rz = min(max(rz + vz * dt, z - 0.05, -WORKSPACE), z + 0.05, WORKSPACE)
-        rq = min(max(rq + wq * dt, q - 0.3), q + 0.3)
-        self._ref = [rx, rz, rq]
-        qvel = d.qvel
-        ctrl = d.ctrl
-        a = self._act
-        ctrl[a[0]] = KP_LIN * (rx - x) + KV_LIN * (vx - qvel[self._vx])
-        ctrl[a[1]] = KP_LIN * (rz - z) + KV_LIN * (vz - qvel[self._vz])
-        ctrl[a[2]] = KP_ROT * (rq - q) + KV_ROT * (wq - qvel[self._vq])
-        self._magnet(magnet)
-        warn = d.warning
-        nbad = warn[_BAD[0]].number + warn[_BAD[1]].number + warn[_BAD[2]].number
-        mujoco.mj_step(m, d)
-        self._steps += 1
-        diverged = (warn[_BAD[0]].number + warn[_BAD[1]].number + warn[_BAD[2]].number != nbad
-                    or not (np.isfinite(d.qvel).all() and abs(d.qvel).max() < 1e4))
-        if diverged:
-            obs = self._obs = np.zeros(len(OBSERVATION_NAMES))
-            info = {"diverged": True, "non_finite": not np.isfinite(d.qvel).all(), "dropped": False,
-                    "scene": {}, "truth": {}, "is_success": False}
-            return obs, 0.0, True, False, info
-        qvel = d.qvel
-        v = (qvel[self._vx], qvel[self._vz], qvel[self._vq])
-        pv = self._prev_v
-        acc = ((v[0] - pv[0]) / dt, (v[1] - pv[1]) / dt, (v[2] - pv[2]) / dt)
-        self._prev_v = v
-        obs = self._observe(*acc)
-        dropped = False
-        if self._held < 0:
-            hz = d.xpos[self._hand, 2]
-            dropped = d.xpos[self._rods[0], 2] < hz - 0.6 and d.xpos[self._rods[1], 2] < hz - 0.6
-        truncated = self._steps * dt >= self.max_duration - 1e-9
-        return obs, 0.0, dropped, truncated, self._info(dropped)
 
     # ------------------------------------------------------------------ magnet
     def _magnet(self, on: bool) -> None:
@@ -475,6 +316,175 @@ class NunchakuEnv(gym.Env):
         # the pivot is the held rod's chain end: rod A's local +x end, rod B's body origin
         chain_end = ct + rt @ np.array([half, 0.0, 0.0]) if i == 0 else ct - offset
         self.estimator.reset(pivot=(float(chain_end[0]), HELD_Z), held_com=(cx, HELD_Z), angle=None)
+
+
+
+class NunchakuEnv(NunchakuHand, gym.Env):
+    """A hand on a 6-DoF base with a magnet palm and a wrist F/T sensor, holding a nunchaku.
+
+    ``max_duration`` [s] truncates an episode; ``capture`` [m] is the magnet's reach from the palm;
+    ``width``/``height`` size the ``rgb_array`` frames, ``shadows`` False renders them without
+    shadows (much cheaper on a CPU renderer). ``dt`` is 0.001 s (one control step = one physics step)
+    times ``frame_skip`` (default 1; physics steps per env step, the action held, as in
+    :class:`multiform.envs.arm_pendulum.ArmPendulumEnv`: for control at a lower rate and videos).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 1000}       # one frame per step: 1000 / frame_skip
+    observation_names = OBSERVATION_NAMES
+    command_names = COMMAND_NAMES
+
+    def __init__(self, render_mode: str | None = None, max_duration: float = 15.0, capture: float = 0.03,
+                 settle: float = 0.25, width: int = 480, height: int = 360, shadows: bool = True,
+                 normalize_actions: bool = False, frame_skip: int = 1):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None")
+        self.frame_skip = check_frame_skip(frame_skip)
+        self.render_mode = render_mode
+        self.max_duration = float(max_duration)
+        self.settle = float(settle)
+        self.width, self.height = int(width), int(height)
+        self.shadows = bool(shadows)
+        NunchakuHand.__init__(self, capture)
+        self.dt = self._h * self.frame_skip                # one env step
+        self.metadata = {**type(self).metadata, "render_fps": int(round(1.0 / self.dt))}
+        self.action_space = gym.spaces.Box(np.array([-3.0, -3.0, -20.0, 0.0]), np.array([3.0, 3.0, 20.0, 1.0]),
+                                           dtype=np.float64)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (len(OBSERVATION_NAMES),), dtype=np.float64)
+        self._obs = np.zeros(len(OBSERVATION_NAMES))
+        self._action_box: tuple[np.ndarray, np.ndarray] | None = None
+        if normalize_actions:
+            self._action_box = (self.action_space.low.copy(), self.action_space.high.copy())
+            self.action_space = gym.spaces.Box(-1.0, 1.0, (len(COMMAND_NAMES),), dtype=np.float64)
+        self._flip = {"released": False, "touched": False, "held_b": 0, "done": False}
+        self._renderer: mujoco.Renderer | None = None
+        self._camera: mujoco.MjvCamera | None = None
+        self._ft_noise = 0.05
+        self._steps = 0
+
+    # ------------------------------------------------------------------ reset
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        p = self._draw_params(dict(options or {}))
+        self.params = p
+        self._apply_params(p)
+        self._place(p)
+        obs = self._observe(0.0, 0.0, 0.0, estimate=False)
+        obs = self._settle(obs)
+        self._steps = 0
+        self._flip = {"released": False, "touched": False, "held_b": 0, "done": False}
+        return obs, self._info(False)
+
+    def _draw_params(self, options: dict[str, Any]) -> dict[str, float]:
+        """This episode's parameters: those the reset options fix, the others drawn from ``RANGES``
+        (or nominal without ``randomize``); sets the force sensor's noise (``ft_noise``)."""
+        randomize = bool(options.pop("randomize", True))
+        self._ft_noise = float(options.pop("ft_noise", 0.05))
+        unknown = set(options) - set(RANGES)
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; known: {sorted(RANGES)}, "
+                             "randomize, ft_noise")
+        p = {}
+        for k, (lo, hi) in RANGES.items():
+            if k in options:
+                p[k] = float(options[k])
+            elif randomize:
+                p[k] = float(self.np_random.uniform(lo, hi))
+            else:
+                p[k] = NOMINAL[k]
+        bad = {k: v for k, v in p.items() if not math.isfinite(v)
+               or (k in ("rod_mass", "rod_length", "friction") and not v > 0) or (k == "chain_damping" and v < 0)}
+        if bad or not (math.isfinite(self._ft_noise) and self._ft_noise >= 0):
+            raise ValueError(f"reset options out of range: {bad or {'ft_noise': self._ft_noise}} (all finite; rod mass, "
+                             "rod length and friction above 0; chain damping and ft_noise at least 0)")
+        return p
+
+    def _settle(self, obs: np.ndarray) -> np.ndarray:
+        """The robot has just picked the nunchaku up and holds still for a moment; it weighs it (the
+        wrist's vertical load minus the hand's own weight) so the estimator's masses fit. Returns
+        the observation after."""
+        n_settle = int(round(self.settle / self._h))
+        load = 0.0
+        hold = np.array([0.0, 0.0, 0.0, 1.0])
+        for _ in range(n_settle):
+            obs, _, terminated, _, _ = self._step(hold)
+            if terminated:
+                break
+            load += self.wrist_vertical_load()
+        if n_settle:
+            hand_weight = self.model.body_mass[self._hand] * 9.81
+            self.estimator.weigh(load / n_settle - hand_weight)
+        return obs
+
+    # ------------------------------------------------------------------- step
+    def step(self, action):
+        if self.frame_skip == 1:
+            return self._physics_step(action)
+        return skip_frames(self._physics_step, action, self.frame_skip)
+
+    def _physics_step(self, action):
+        if self._action_box is not None:
+            lo, hi = self._action_box
+            action = lo + (np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0) + 1.0) * 0.5 * (hi - lo)
+        obs, _, terminated, truncated, info = self._step(action)
+        done_before = self._flip["done"]
+        if not info["diverged"]:
+            self._track_flip()
+        info["is_success"] = self._flip["done"]
+        return obs, float(self._flip["done"] and not done_before), terminated, truncated, info
+
+    def _track_flip(self) -> None:
+        f = self._flip
+        if self._held < 0:
+            f["released"] = True
+            f["touched"] = f["touched"] or self.back_of_hand_touch() > FLIP_TOUCH
+        f["held_b"] = f["held_b"] + 1 if self._held == 1 else 0
+        if f["released"] and f["touched"] and f["held_b"] * self._h >= FLIP_HOLD - 1e-9:
+            f["done"] = True
+
+    def _step(self, action):
+        m, d = self.model, self.data
+        dt = self._h
+        vx = min(max(float(action[0]), -3.0), 3.0)
+        vz = min(max(float(action[1]), -3.0), 3.0)
+        wq = min(max(float(action[2]), -20.0), 20.0)
+        magnet = float(action[3]) > 0.5
+        qpos = d.qpos
+        rx, rz, rq = self._ref
+        x, z, q = qpos[self._qx], qpos[self._qz], qpos[self._qq]
+        rx = min(max(rx + vx * dt, x - 0.05, -WORKSPACE), x + 0.05, WORKSPACE)
+        rz = min(max(rz + vz * dt, z - 0.05, -WORKSPACE), z + 0.05, WORKSPACE)
+        rq = min(max(rq + wq * dt, q - 0.3), q + 0.3)
+        self._ref = [rx, rz, rq]
+        qvel = d.qvel
+        ctrl = d.ctrl
+        a = self._act
+        ctrl[a[0]] = KP_LIN * (rx - x) + KV_LIN * (vx - qvel[self._vx])
+        ctrl[a[1]] = KP_LIN * (rz - z) + KV_LIN * (vz - qvel[self._vz])
+        ctrl[a[2]] = KP_ROT * (rq - q) + KV_ROT * (wq - qvel[self._vq])
+        self._magnet(magnet)
+        warn = d.warning
+        nbad = warn[_BAD[0]].number + warn[_BAD[1]].number + warn[_BAD[2]].number
+        mujoco.mj_step(m, d)
+        self._steps += 1
+        diverged = (warn[_BAD[0]].number + warn[_BAD[1]].number + warn[_BAD[2]].number != nbad
+                    or not (np.isfinite(d.qvel).all() and abs(d.qvel).max() < 1e4))
+        if diverged:
+            obs = self._obs = np.zeros(len(OBSERVATION_NAMES))
+            info = {"diverged": True, "non_finite": not np.isfinite(d.qvel).all(), "dropped": False,
+                    "scene": {}, "truth": {}, "is_success": False}
+            return obs, 0.0, True, False, info
+        qvel = d.qvel
+        v = (qvel[self._vx], qvel[self._vz], qvel[self._vq])
+        pv = self._prev_v
+        acc = ((v[0] - pv[0]) / dt, (v[1] - pv[1]) / dt, (v[2] - pv[2]) / dt)
+        self._prev_v = v
+        obs = self._observe(*acc)
+        dropped = False
+        if self._held < 0:
+            hz = d.xpos[self._hand, 2]
+            dropped = d.xpos[self._rods[0], 2] < hz - 0.6 and d.xpos[self._rods[1], 2] < hz - 0.6
+        truncated = self._steps * dt >= self.max_duration - 1e-9
+        return obs, 0.0, dropped, truncated, self._info(dropped)
 
     # ------------------------------------------------------------ observation
     def _observe(self, ax: float, az: float, alpha: float, estimate: bool = True) -> np.ndarray:
