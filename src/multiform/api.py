@@ -99,13 +99,14 @@ def run_trial(model: Any, seed: int, options: Mapping[str, Any] | None = None, t
     :class:`~multiform.runtime.trace.Trace`. Reset options: ``options``, else the task's
     ``trial_options(seed)``. The trace ends when the net stops (a final place, or the skill's
     ``max_duration``): a physical check on its last samples judges the moment the net stopped."""
+    from .runtime.perturb import TrialSpec, run_spec
     model = _model(model)
     if options is None and task is not None:
         options = load_task(task).trial_options(seed)
     env = model.make_env()
     try:
         apn = model.history.version(version) if version is not None else None
-        return model.executor(env, apn).run(seed=seed, options=options)
+        return run_spec(model.executor(env, apn), TrialSpec(seed, dict(options or {})))[0]
     finally:
         env.close()
 

@@ -19,7 +19,7 @@ from typing import Any
 
 from .parallel import WorkerState, mp_context, ray_backend, task_key
 from .stats import rate
-from .task import TrialSpec
+from .runtime.perturb import TrialSpec, run_spec
 
 
 @dataclass(frozen=True)
@@ -75,10 +75,8 @@ def _variant(variant: Variant) -> dict[str, Any]:
 
 
 def _run(variant: Variant, spec: TrialSpec) -> dict[str, Any]:
-    from .adapt.perturb import PushInPlace
     w = _variant(variant)
-    push = PushInPlace(**spec.push) if spec.push else None
-    trace = w["executor"].run(seed=spec.seed, options=spec.options, perturb=push)
+    trace, _ = run_spec(w["executor"], spec)
     grade = (w["model"].grade(trace, f"eval_{spec.seed}", w["judges"], apn=w["executor"].apn)
              if w["judges"] else None)
     ok = bool(_WORKER.state["task"].physical_success(trace))

@@ -36,7 +36,8 @@ from .model import SkillModel, staged_model_dir
 from .trainer import train_model
 from . import __version__
 from .stats import evaluation_split, rate
-from .task import Task, TrialSpec, load_task
+from .runtime.perturb import TrialSpec
+from .task import Task, load_task
 
 Log = Callable[[str], None]
 

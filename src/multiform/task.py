@@ -31,18 +31,10 @@ from types import ModuleType
 from typing import Any
 
 from .errors import InvalidInput, MissingInput
+from .runtime.perturb import PushInPlace, TrialSpec
 
 BUNDLED = {"pendulum": "multiform.tasks.pendulum:Pendulum", "nunchaku": "multiform.tasks.nunchaku:Nunchaku"}
 ENTRY_POINT_GROUP = "multiform.tasks"
-
-
-@dataclass(frozen=True)
-class TrialSpec:
-    """One evaluation trial: seed, env reset options, and the experimenter's push (if any)."""
-
-    seed: int
-    options: dict[str, Any] = field(default_factory=dict)
-    push: dict[str, Any] | None = None          # PushInPlace arguments
 
 
 @dataclass(frozen=True)
@@ -160,7 +152,7 @@ class Task:
         return {}
 
     def push(self, seed: int) -> dict[str, Any] | None:
-        """The experimenter's push in trial ``seed`` (:class:`multiform.adapt.perturb.PushInPlace`
+        """The experimenter's push in trial ``seed`` (:class:`multiform.runtime.perturb.PushInPlace`
         arguments; the env needs ``push(size, duration)``), or None: no disturbance."""
         return None
 
@@ -183,7 +175,6 @@ class Task:
         None if the task never pushes or ``fraction`` is 0."""
         if fraction <= 0 or self.push(base) is None:
             return None
-        from .adapt.perturb import PushInPlace
 
         def perturb(k: int) -> Any:
             j = k // 2

@@ -11,7 +11,7 @@ import yaml
 pytest.importorskip("rerun")
 
 import multiform.envs  # noqa: F401,E402
-from multiform.adapt.perturb import PushInPlace  # noqa: E402
+from multiform.runtime.perturb import PushInPlace  # noqa: E402
 from multiform.petri.skillfile import parse_skill  # noqa: E402
 from multiform.runtime.executor import Executor  # noqa: E402
 from multiform.view.stream import TrialStream, read_recording  # noqa: E402

@@ -15,7 +15,7 @@ from dataclasses import MISSING, dataclass
 from pathlib import Path
 from typing import Any
 
-from ..adapt.perturb import PushInPlace
+from ..runtime.perturb import TrialSpec, run_spec
 from ..errors import InvalidInput, Problem
 from ..io import read_json
 from ..model import SkillModel
@@ -91,11 +91,10 @@ def _trial(model: SkillModel, task: Task, inverse_model: bool, seed: int, push: 
            qpos_every: int, observer: Any = None):
     """Rerun evaluation trial ``seed``; returns the trace and the push's time (None without one)."""
     env = model.make_env(render_mode="rgb_array")
-    hand = PushInPlace(**push) if push else None
     try:
         ex = model.executor(env, use_inverse_model=inverse_model)
         kw = {"observer": observer} if observer is not None else {}
-        trace = ex.run(seed=seed, options=task.trial_options(seed), perturb=hand, qpos_every=qpos_every, **kw)
+        trace, hand = run_spec(ex, TrialSpec(seed, task.trial_options(seed), push), qpos_every=qpos_every, **kw)
     finally:
         env.close()
     return trace, (None if hand is None or hand.tick is None else hand.tick * trace.dt)

@@ -1,8 +1,10 @@
-"""The experimenter's pushes during practice and evaluation (the executor's ``perturb`` hook)."""
+"""The experimenter's push during a trial (the executor's ``perturb`` hook), and one trial run as
+described by plain data (:class:`TrialSpec`: seed, reset options, push), the same way wherever it runs."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 import gymnasium as gym
 
@@ -33,3 +35,20 @@ class PushInPlace:
             env.unwrapped.push(self.size, self.duration)
             self.done = True
             self.tick = tick
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """One trial: seed, env reset options, and the experimenter's push (if any)."""
+
+    seed: int
+    options: dict[str, Any] = field(default_factory=dict)
+    push: dict[str, Any] | None = None          # PushInPlace arguments
+
+
+def run_spec(executor: Any, spec: TrialSpec, **run: Any) -> tuple[Any, PushInPlace | None]:
+    """Run the trial ``spec`` describes on ``executor`` (:class:`~.executor.Executor`; ``run``: its
+    ``run`` arguments such as ``observer`` or ``qpos_every``); returns the trace and the push (its
+    ``tick`` says when it pushed), or None without one."""
+    push = PushInPlace(**spec.push) if spec.push else None
+    return executor.run(seed=spec.seed, options=spec.options, perturb=push, **run), push
