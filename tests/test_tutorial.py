@@ -37,12 +37,16 @@ def test_the_example_is_at_most_sixty_lines_using_only_exported_names():
 
 @pytest.mark.slow
 def test_the_tutorial_runs_end_to_end_with_a_repair(tmp_path):
-    """Scripted demos -> train -> practice (the over-strict t1 relearned) -> evaluation (≈ 15 s)."""
+    """Scripted demos -> train -> practice (the over-strict t1 relearned), then practice that learns from
+    its own trials -> evaluation (≈ 15 s)."""
     res = subprocess.run([sys.executable, "run.py", str(tmp_path / "run")], cwd=EXAMPLE, capture_output=True,
                          text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-2000:]
     assert re.search(r"revision 1: set_condition t1 — .*condition relearned from the mentor's switches", res.stdout), \
         res.stdout
+    # the Task defaults' second scenario learns from practice: it explores and keeps its own graded segments
+    keep = re.search(r"keep: (\d+) trials \((\d+) exploring\), (\d+) segments of its own", res.stdout)
+    assert keep and int(keep.group(2)) > 0 and int(keep.group(3)) > 0, res.stdout
     ok, n = map(int, re.search(r"success (\d+)/(\d+)", res.stdout).groups())
     assert n == 20 and ok >= 18
     # a mentor that never fails: train says the judges are uninformative, in one line each, no warnings

@@ -1,4 +1,5 @@
-"""Teach the mountain car: scripted demonstrations, training, practice with a repair, evaluation."""
+"""Teach the mountain car: scripted demonstrations, training, practice (a repair, then learning from
+its own graded trials), evaluation."""
 
 import sys
 from pathlib import Path
@@ -10,7 +11,13 @@ out = Path(sys.argv[1] if len(sys.argv) > 1 else "mountain_car_run")
 task = MountainCar()
 demos = multiform.record(task, out / "demos.h5", demos=task.DEMOS)
 model = multiform.train(task.SKILL, demos, out / "model", task=task)
-state = multiform.practise(model, task, max_trials=15)
-print(*(f"revision {r.version}: {r.operator} {r.target} — {r.reason}" for r in state.revisions), sep="\n")
+for scenario in multiform.scenario_names(task):      # "practice" repairs the net, "keep" also learns
+    state = multiform.practise(model, task, scenario=scenario, max_trials=40)
+    explored = sum(t.explored for t in state.trials)
+    own = sum(t.own_segments for t in state.trials)
+    print(f"{scenario}: {len(state.trials)} trials ({explored} exploring), {own} segments of its own kept for "
+          f"its laws; {state.stop_reason}")
+    for r in state.revisions:
+        print(f"revision {r.version}: {r.operator} {r.target} — {r.reason}")
 result = multiform.evaluate(model, task, trials=20)
 print(f"success {result['successes']}/{result['trials']} (95 % CI {result['low']:.2f}-{result['high']:.2f})")
