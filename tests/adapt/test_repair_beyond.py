@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import yaml
 
-from multiform.adapt.compare import compare_with_mentor
-from multiform.adapt.diagnosis import diagnose
+from multiform.adapt.compare import compare_with_mentor, demonstration_findings
+from multiform.adapt.diagnosis import Diagnosis, diagnose
 from multiform.adapt.mentor import mentor_evidence
 from multiform.adapt.practice import Practice, PracticeConfig, PracticeState, RevisionRecord, TrialRecord, Trying
 from multiform.adapt.repair import candidates, repair
@@ -324,3 +324,52 @@ def test_a_practice_state_saved_with_lambda_exhausted_still_loads(tmp_path):
     loaded = practice.load_state()
     assert loaded.revisions == state.revisions and loaded.tried == state.tried
     assert loaded.lambda_exhausted == []                       # read off the revisions, not the file
+
+
+# -- before the first trial: what the demonstrations alone show --------------------------------------
+
+@pytest.mark.parametrize("t1", ["true", "dwell > 0.1", "abs(theta) >= 0"])
+def test_a_switch_condition_that_holds_wherever_the_mentor_held_off_is_found_before_any_trial(t1):
+    """Written with no bound to move (true, a clock alone, a bound nothing crosses), it switches at
+    once; the mentor's switches show where it should."""
+    apn = edited(t1={"condition": t1})
+    ev = mentor_evidence(apn, EPISODES)
+    fit = ev.conditions["t1"]
+    assert fit.loose == pytest.approx(1.0) and fit.negatives > 0
+    (f,) = demonstration_findings(apn, ev)
+    assert (f.kind, f.transition) == ("too_loose", "t1") and "would switch at once" in f.reason
+    fake = FakeLearners(ev)
+    assert repair(apn, Diagnosis(trials=0, failures=0, findings=[f]), fake).apn.transition("t1").condition.model \
+        == "t1_switch"
+    # the same condition found from failures too: the robot fired it in every failed trial
+    d = diagnose(apn, _loose_failures(apn), mentor=ev)
+    assert ("too_loose", "t1") in [(x.kind, x.transition) for x in d.findings]
+
+
+def test_no_weight_on_a_maneuver_the_mentor_took_is_found_before_any_trial():
+    apn = edited(t1={"lambda": 0.0})
+    (f,) = demonstration_findings(apn, mentor_evidence(apn, EPISODES))
+    assert (f.kind, f.transition) == ("starved", "t1")
+    fixed = repair(apn, Diagnosis(trials=0, failures=0, findings=[f]), FakeLearners()).apn
+    assert fixed.transition("t1").lam > 0
+
+
+def test_the_sound_definition_shows_nothing_wrong_before_any_trial():
+    for name in ("pendulum", "pendulum_strict"):
+        apn = load_skill(name)
+        assert demonstration_findings(apn, mentor_evidence(apn, EPISODES)) == []
+
+
+def test_practice_fixes_what_the_demonstrations_show_before_its_first_trial(tmp_path):
+    d = skill_to_data(load_skill("pendulum"))
+    d["transitions"]["t1"]["condition"] = "true"
+    skill = tmp_path / "loose.yaml"
+    skill.write_text(yaml.safe_dump(d))
+    model = SkillModel.create(tmp_path / "model", skill)
+    practice = Practice(model, tmp_path / "p", PracticeConfig(), name="a")
+    practice.ctx.learners = FakeLearners(mentor_evidence(model.apn, EPISODES))
+    state = PracticeState()
+    practice.repairs.check_definition(state)
+    (rev,) = model.history.revisions()
+    assert (rev.operator, rev.target, rev.evidence["candidate"]) == ("set_condition", "t1", "demonstrations:too_loose:t1")
+    assert state.checked and state.revisions[0].after_trial == -1 and state.tried == []

@@ -49,6 +49,7 @@ LOOSE = 0.05            # one holding at more of the mentor's non-switch states 
 SLACK = 2.0             # a limit moved to the mentor's longest successful stay leaves this much room: the robot's
                         # maneuvers run slower than the mentor's (nunchaku swing-up, 1.25: 87/100 against the sound 97/100)
 LAW_RATIO = 0.7         # another law explains a transition's segments when its error is under this share
+BLIND = 0.9             # a condition holding at this much of the mentor's non-switch states switches at once
 MIN_USES = 3            # the mentor's successful uses needed to judge a transition's law or put one back
 _LT = (operator.lt, operator.le)
 
@@ -86,6 +87,54 @@ def compare_with_mentor(apn: APN, traces: Sequence[Trace], mentor: MentorEvidenc
                  _missing_stops):
         out += rule(apn, failed, succeeded, mentor)
     return out
+
+
+def demonstration_findings(apn: APN, mentor: MentorEvidence) -> list[Finding]:
+    """What the demonstrations alone show wrong before any trial: a switch condition that holds
+    nearly everywhere the mentor chose not to switch (:data:`BLIND`: the robot would switch at
+    once), a transition with no weight that the mentor took successfully, and a transition whose
+    mentor's segments another law explains far better than the one it runs. Give-up rules that end
+    the mentor's own successful stays are :func:`~.replay.replay_limits`'."""
+    out = []
+    for tid, fit in mentor.conditions.items():
+        t = apn.transition(tid) if tid in apn.transition_ids else None
+        if t is None or t.condition.is_learned or t.lam == 0 or fit.loose < BLIND:
+            continue
+        out.append(Finding("too_loose", tid,
+                           f"'{t.condition}' holds at {100 * fit.loose:.1f} % of the {fit.negatives} states where the "
+                           f"mentor chose not to switch into {tid}: the robot would switch at once", fit.to_json()))
+    for t in apn.transitions:
+        if t.lam == 0 and mentor.took_success.get(t.id, 0) >= MIN_USES:
+            out.append(Finding("starved", t.id,
+                               f"λ({t.id}) = 0: it can never fire, but the mentor took it successfully "
+                               f"{mentor.took_success[t.id]} time(s)",
+                               {"lambda": 0.0, "mentor_took_successfully": mentor.took_success[t.id]}))
+        law = _better_law(apn, t.id, mentor)
+        if law is not None:
+            best, errors = law
+            out.append(Finding("wrong_law", t.id,
+                               f"the mentor's commands in its {mentor.took_success[t.id]} successful segments of "
+                               f"{t.id} are explained by {best} (held-out NRMSE {errors[best]:.2f}) far better than "
+                               f"by {t.law}, the law it runs ({errors[t.law]:.2f})",
+                               {"heldout_nrmse": {k: round(v, 4) for k, v in errors.items()},
+                                "mentor_took_successfully": mentor.took_success[t.id]}, law=best))
+    return out
+
+
+def _better_law(apn: APN, tid: str, mentor: MentorEvidence) -> tuple[str, dict[str, float]] | None:
+    """The law that explains the mentor's successful segments of ``tid`` far better (held-out NRMSE
+    under :data:`LAW_RATIO` of its own law's, and under 1) than the law it runs, with every law's
+    error; None if its own law is about as good, or there is too little to tell."""
+    t = apn.transition(tid)
+    if not t.law or mentor.took_success.get(tid, 0) < MIN_USES:
+        return None
+    errors = mentor.law_errors(apn, tid)
+    own = errors.get(t.law)
+    others = {k: v for k, v in errors.items() if k != t.law}
+    if own is None or not others:
+        return None
+    best = min(others, key=others.get)
+    return None if others[best] >= LAW_RATIO * own or others[best] >= 1.0 else (best, errors)
 
 
 # -- facts about one trial ----------------------------------------------------------------------------
@@ -356,21 +405,15 @@ def _wrong_laws(apn: APN, failed: list[Trace], succeeded: list[list[str]], mento
         if not t.law or mentor.took_success.get(t.id, 0) < MIN_USES:
             continue
         ended = [tr for tr in failed if t.id in tr.fired() and _end_place(apn, tr) in t.outputs]
-        if 2 * len(ended) < len(failed):
+        law = _better_law(apn, t.id, mentor) if 2 * len(ended) >= len(failed) else None
+        if law is None:
             continue
-        errors = mentor.law_errors(apn, t.id)
-        own = errors.get(t.law)
-        others = {k: v for k, v in errors.items() if k != t.law}
-        if own is None or not others:
-            continue
-        best = min(others, key=others.get)
-        if others[best] >= LAW_RATIO * own or others[best] >= 1.0:
-            continue
+        best, errors = law
         out.append(Finding("wrong_law", t.id,
                            f"{len(ended)} of {len(failed)} failed trials ended in {', '.join(t.outputs)} after {t.id} "
                            f"fired; the mentor's commands in its {mentor.took_success[t.id]} successful segments are "
-                           f"explained by {best} (held-out NRMSE {others[best]:.2f}) far better than by {t.law}, the "
-                           f"law it runs ({own:.2f})",
+                           f"explained by {best} (held-out NRMSE {errors[best]:.2f}) far better than by {t.law}, the "
+                           f"law it runs ({errors[t.law]:.2f})",
                            {"ended_after_it": len(ended), "failed_trials": len(failed),
                             "heldout_nrmse": {k: round(v, 4) for k, v in errors.items()},
                             "mentor_took_successfully": mentor.took_success[t.id]}, law=best))

@@ -180,16 +180,26 @@ def mentor_evidence(apn: APN, episodes: Sequence[Episode], min_switches: int = 3
     for t in apn.transitions:
         if apn.is_repeat(t.id) or any(apn.place(p).final for p in t.outputs):
             continue                # repeats and stop/give-up rules: held against timing, not switches
-        g = _state_part(t.condition.guard, state)
-        if g is None or ev.took_success.get(t.id, 0) < min_switches:
+        if ev.took_success.get(t.id, 0) < min_switches:
             continue
-        names = sorted(g.variables)
+        g = _state_part(t.condition.guard, state)
+        # a condition that reads no state ("true", or clocks alone) holds wherever the mentor was: it
+        # is held against the mentor's switches as holding everywhere, read off the place's judged
+        # variables (or the state's)
+        names = sorted(g.variables) if g is not None else \
+            sorted({v for p in t.inputs for v in apn.place(p).judge} or set(apn.variables))
+        if not names:
+            continue
         cols = lambda X: {n: X[:, i] for i, n in enumerate(names)}  # noqa: E731
         moments = [W for _, _, W in switch_windows(apn, episodes, t.id, names, before=0.0, after=MOMENT) if len(W)]
         if len(moments) < min_switches:
             continue
-        hit = float(np.mean([(g.evaluate_arrays(cols(W)) > 0).any() for W in moments]))
         neg = switch_data(apn, episodes, t.id, names).negatives
+        if g is None:
+            if len(neg):
+                ev.conditions[t.id] = ConditionFit(len(moments), 1.0, 1.0, int(len(neg)))
+            continue
+        hit = float(np.mean([(g.evaluate_arrays(cols(W)) > 0).any() for W in moments]))
         loose = float((g.evaluate_arrays(cols(neg)) > 0).mean()) if len(neg) else 0.0
         ev.conditions[t.id] = ConditionFit(len(moments), hit, loose, int(len(neg)))
     return ev

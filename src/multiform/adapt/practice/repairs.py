@@ -25,11 +25,17 @@ from ...petri.net import APN
 from ...petri.revision import revert
 from ...runtime.trace import Trace
 from ..diagnosis import diagnose
-from ..repair import move_limit, repair
+from ..compare import demonstration_findings
+from ..repair import move_limit, relearn_from_mentor, repair, restore_lambda, set_law_from_mentor
 from ..replay import replay_limits
 from .context import Context
 from .state import PracticeState, RevisionRecord, Trying
 from .watch import RevisionWatch
+
+
+_FIX = {"too_loose": relearn_from_mentor,
+        "starved": lambda apn, f, learners: restore_lambda(apn, f),
+        "wrong_law": lambda apn, f, learners: set_law_from_mentor(apn, f)}
 
 
 class Repairs:
@@ -54,20 +60,37 @@ class Repairs:
         return False
 
     def check_definition(self, state: PracticeState) -> None:
-        """Before the first trial: move the give-up rules that would have ended the mentor's own
-        successful demonstrations (:func:`~..replay.replay_limits`), each a recorded revision. Not put
-        on trial like a repair from failures: the demonstrations are the evidence, and a later
-        failure need not be the limit's."""
+        """Before the first trial, what the demonstrations alone show wrong, each a recorded revision
+        with the candidate key ``demonstrations:...``: give-up rules that would have ended the
+        mentor's own successful stays are moved (:func:`~..replay.replay_limits`); a switch condition
+        that holds nearly everywhere the mentor held off is relearned from its switches, a weight of
+        0 on a maneuver the mentor took is restored, and a maneuver runs the law that explains the
+        mentor's segments of it (:func:`~..compare.demonstration_findings`). Not put on trial like a
+        repair from failures: the demonstrations are the evidence, and a later failure need not be
+        the definition's."""
         ctx = self.ctx
         mentor = ctx.learners.mentor(ctx.model.apn)
         if mentor is not None:
             for f in replay_limits(ctx.model.apn, mentor):
-                fix = move_limit(ctx.model.apn, f)
-                key = f"demonstrations:{f.transition}"
-                for rev in fix.revisions:
-                    ctx.record(state, replace(rev, evidence={**rev.evidence, "candidate": key}),
-                               {"findings": [f.to_json()]})
+                self._record_fix(state, move_limit(ctx.model.apn, f), f"demonstrations:{f.transition}", f)
+            done: set[str] = set()
+            while True:
+                apn = ctx.model.apn
+                mentor = ctx.learners.mentor(apn)
+                found = [f for f in demonstration_findings(apn, mentor) if f"{f.kind}:{f.transition}" not in done]
+                if not found:
+                    break
+                f = found[0]
+                done.add(f"{f.kind}:{f.transition}")
+                fix = _FIX[f.kind](apn, f, ctx.learners)
+                if fix is not None:
+                    self._record_fix(state, fix, f"demonstrations:{f.kind}:{f.transition}", f)
         state.checked = True
+
+    def _record_fix(self, state: PracticeState, fix: Any, key: str, finding: Any) -> None:
+        for rev in fix.revisions:
+            self.ctx.record(state, replace(rev, evidence={**rev.evidence, "candidate": key}),
+                            {"findings": [finding.to_json()]})
 
     def repair(self, state: PracticeState) -> None:
         """Diagnose the failures since the last revision; revert the repair on trial if it did not
