@@ -86,3 +86,17 @@ def test_a_bad_spec_is_refused_naming_it(spec, words):
     with pytest.raises(InvalidInput, match=words) as info:
         load_task(spec)
     assert spec in str(info.value)
+
+
+def test_a_scenario_on_a_changed_object_overrides_its_reset_options():
+    sc = load_task("pendulum").scenarios()[2]
+    changed = sc.with_options({"length": 0.24})
+    assert changed.options(5) == {"randomize": True, "length": 0.24} and sc.options(5) == {"randomize": True}
+    assert (changed.name, changed.learn, changed.push) == (sc.name, sc.learn, sc.push)
+
+
+def test_options_for_a_changed_object_are_checked_as_plain_data():
+    from multiform.api import _reset_options
+    assert _reset_options({"length": 0.24}) == {"length": 0.24}
+    with pytest.raises(InvalidInput, match="options"):
+        _reset_options({"length": float("inf")})

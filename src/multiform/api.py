@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import os
 import shutil
+from dataclasses import replace
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -114,16 +115,20 @@ def run_trial(model: Any, seed: int, options: Mapping[str, Any] | None = None, t
 def practise(model: Any, task: TaskLike | None = None, scenario: str | None = None,
              out: str | os.PathLike | None = None, max_trials: int = 30, seed: int = 0,
              stop_after: int | None = None, progress: Callable[[Any, dict[str, Any]], None] | None = None,
-             observe: Callable[..., Any] | None = None) -> Any:
+             observe: Callable[..., Any] | None = None, options: Mapping[str, Any] | None = None) -> Any:
     """Practise the model through one of the task's scenarios (default: the task's first; task
     default: the bundled or installed one whose env the model runs); constant failure triggers
     diagnosis and a repair of the net, recorded as a revision. The practice folder ``out``
     (default ``MODEL/practice/SCENARIO``) is resumed where it stopped; ``stop_after`` ends this
     call after that many more trials. ``progress(state, trial)`` is called after each trial.
+    ``options`` (env reset options, e.g. ``{"length": 0.24}``) override the task's in every trial:
+    practice on a changed object, which adapts the skill to it like any other practice.
     Returns the :class:`~multiform.adapt.practice.PracticeState` (trials, revisions, why it stopped)."""
     model = _model(model)
     task = _task_of(model, task)
     index, sc = _scenario(task, scenario)
+    if options:
+        sc = sc.with_options(_reset_options(options))
     folder = Path(out) if out is not None else Path(model.path) / "practice" / sc.name
     practice = sc.practice(model, folder, max_trials, seed + index, observe=observe(folder) if observe else None)
     return practice.run(progress=progress, stop_after=stop_after)
@@ -136,11 +141,13 @@ def scenario_names(task: TaskLike) -> list[str]:
 
 def evaluate(model: Any, task: TaskLike | None = None, trials: int = 200, seed: int = 0, push_fraction: float = 0.5,
              workers: int = 2, version: int | None = None, out: str | os.PathLike | None = None,
-             overwrite: bool = False, progress: Progress | None = None, ray: str | None = None) -> dict[str, Any]:
+             overwrite: bool = False, progress: Progress | None = None, ray: str | None = None,
+             options: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The model (its latest net, or ``version``) on the task's evaluation trials (seeds: see the
     module docstring), judged by the task's physical check: the success rate with its 95 % Wilson
     interval, the robot's own verdict beside it, one record per trial (``trials_detail``). With
-    ``out`` (a folder) the result is also written to ``out/evaluation.json``."""
+    ``out`` (a folder) the result is also written to ``out/evaluation.json``. ``options`` (env reset
+    options) override the task's in every trial (a changed object)."""
     from .evaluation import Variant
     from .evaluation import evaluate as run
     from .io import write_json
@@ -157,12 +164,16 @@ def evaluate(model: Any, task: TaskLike | None = None, trials: int = 200, seed: 
         target = _new_output(Path(out) / "evaluation.json", overwrite, "file")
         check_writable(target if Path(out).is_dir() else Path(out))      # the folder is made at the end
     specs = task.evaluation_specs(trials, seed, push_fraction)
+    if options:
+        extra = _reset_options(options)
+        specs = [replace(s, options={**s.options, **extra}) for s in specs]
     variant = Variant(f"{model.apn.name} v{model.version if version is None else version}",
                       str(Path(model.path).resolve()), net_version=version, env_modules=model.env_modules)
     res = run(task.spec or task, variant, specs, workers=workers, progress=progress, ray=ray)
     if target is not None:
         write_json(target, {"model": str(model.path), "task": task.TASK, "seed": seed,
-                            "push_fraction": push_fraction, "net_version": version, **res})
+                            "push_fraction": push_fraction, "net_version": version,
+                            **({"options": dict(options)} if options else {}), **res})
     return res
 
 
@@ -255,6 +266,16 @@ def _task_or_none(find: Callable[[str], Task], env_id: str) -> Task | None:
         return find(env_id)
     except InvalidInput:
         return None
+
+
+def _reset_options(options: Mapping[str, Any]) -> dict[str, Any]:
+    """Reset options given by a caller, checked as plain bounded data."""
+    from .io import plain_data_problems
+    problems = plain_data_problems(dict(options), "options")
+    if problems:
+        where, msg = problems[0]
+        raise InvalidInput(msg, element=where)
+    return dict(options)
 
 
 def _scenario(task: Task, name: str | None) -> tuple[int, Scenario]:

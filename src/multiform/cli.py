@@ -361,7 +361,8 @@ def cmd_practice(args: argparse.Namespace) -> int:
     model = api.open_model(args.model, env_modules=tuple(args.env_module))
     observe = (lambda folder: _views(args, folder / "view")) if args.view is not None else None
     state = api.practise(model, args.task, scenario=args.scenario, out=args.out, max_trials=args.max_trials,
-                         seed=args.seed, stop_after=args.stop_after, progress=_show_trial, observe=observe)
+                         seed=args.seed, stop_after=args.stop_after, progress=_show_trial, observe=observe,
+                         options=args.options)
     print(f"{len(state.trials)} trials; {state.stop_reason or 'stopped'}")
     return 1 if state.stop_reason.startswith("fault") else 0
 
@@ -371,7 +372,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     with _progress("evaluating") as progress:
         res = api.evaluate(model, args.task, trials=args.trials, seed=args.seed, push_fraction=args.push_fraction,
                            workers=args.workers, version=args.net_version, out=args.out, overwrite=args.overwrite,
-                           progress=progress, ray=args.ray)
+                           progress=progress, ray=args.ray, options=args.options)
     pushed = f"; pushed {res['pushed']['successes']}/{res['pushed']['trials']}" if res.get("pushed") else ""
     print(f"success {100 * res['rate']:.1f} % ({res['successes']}/{res['trials']}; 95 % CI {100 * res['low']:.1f}-"
           f"{100 * res['high']:.1f} %){pushed}; the robot's own verdict agreed on {100 * res['agreement']:.1f} %"

@@ -48,6 +48,23 @@ def _number(low: float, high: float, low_open: bool = False):
     return parse
 
 
+def _json_object(text: str) -> dict[str, Any]:
+    """An argparse type: a JSON object (reset options), bounded as any data read from a file."""
+    import json
+
+    from .io import plain_data_problems
+    try:
+        value = json.loads(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"not JSON ({exc})") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(f"must be a JSON object, got {type(value).__name__}")
+    problems = plain_data_problems(value, "options")
+    if problems:
+        raise argparse.ArgumentTypeError(f"{problems[0][0]}: {problems[0][1]}")
+    return value
+
+
 _positive = _number(0.0, float("inf"), low_open=True)
 _fraction = _number(0.0, 1.0)
 _version_number = _count(-1_000_000, 1_000_000)
@@ -307,6 +324,9 @@ def _add_model_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
     p.add_argument("model", help="model directory")
     p.add_argument("--task", default=None, help=TASK_HELP + " (default: the one whose env the model runs)")
     p.add_argument("--scenario", default=None, help="the task's practice scenario (default: the task's first)")
+    p.add_argument("--options", type=_json_object, default=None, metavar="JSON",
+                   help='env reset options that override the task\'s in every trial, e.g. \'{"length": 0.24}\': '
+                        "practise on a changed object (default: the task's)")
     p.add_argument("--out", help="practice folder, resumed if it exists (default: MODEL/practice/SCENARIO)")
     p.add_argument("--max-trials", type=_count(1, 100_000), default=_default(api.practise, "max_trials"),
                    help="trials at most")
@@ -335,6 +355,8 @@ def _add_run_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
                    help="evaluation trials")
     p.add_argument("--seed", type=_count(0, 40_000), default=_default(api.evaluate, "seed"),
                    help="trial i starts from seed 50000000 + 100000 * SEED + i (the main job's evaluation: 0)")
+    p.add_argument("--options", type=_json_object, default=None, metavar="JSON",
+                   help="env reset options that override the task's in every trial (default: the task's)")
     p.add_argument("--push-fraction", type=_fraction, default=_default(api.evaluate, "push_fraction"),
                    help="share of the trials the experimenter pushes (where the task pushes)")
     _add_net_version(p, "run")

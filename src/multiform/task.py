@@ -25,7 +25,7 @@ import importlib
 import math
 import sys
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -55,6 +55,12 @@ class Scenario:
     mentor: Callable[[], Any] | None = None
     takeover: Callable[[], Any] | None = None
     config: Mapping[str, Any] = field(default_factory=dict)
+    push: Callable[[int], Any] | None = None    # draw -> the push, scheduled or not (deliberate practice)
+
+    def with_options(self, options: Mapping[str, Any]) -> Scenario:
+        """This scenario with ``options`` overriding its reset options in every trial (a changed object)."""
+        base = self.options
+        return replace(self, options=lambda k: {**base(k), **options})
 
     def practice_config(self, max_trials: int, seed: int) -> Any:
         """The scenario's :class:`~multiform.adapt.practice.PracticeConfig`."""
@@ -70,7 +76,7 @@ class Scenario:
         mentor = self.mentor() if self.learn and self.mentor is not None else None
         takeover = self.takeover() if self.learn and self.takeover is not None and cfg.budgets(True)[1] else None
         return Practice(model, folder, cfg, options=self.options, perturb=self.perturb, name=self.name,
-                        mentor=mentor, observe=observe, takeover=takeover)
+                        mentor=mentor, observe=observe, takeover=takeover, push=self.push)
 
 
 class Task:
@@ -190,7 +196,7 @@ class Task:
         return [Scenario("practice", "practice from the task's trial starts: repair the net", self.trial_options),
                 Scenario("keep", "practice as evaluated, learning from its own graded experience",
                          self.trial_options, perturb=self.pushed(1_000, 0.5), learn=True,
-                         mentor=self.mentor_grader, takeover=self.mentor_takeover)]
+                         mentor=self.mentor_grader, takeover=self.mentor_takeover, push=self.pushed(1_000, 1.0))]
 
     def robot_env_kwargs(self, inverse_model: bool) -> dict[str, Any]:
         """gymnasium.make arguments of the robot's own trials (torques with the inverse model)."""

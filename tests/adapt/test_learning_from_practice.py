@@ -4,6 +4,7 @@ the mentor's grade of a trial, and the revert of a revision that made things wor
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -389,3 +390,39 @@ def test_no_repair_is_made_with_too_few_trials_left_to_check_it(tmp_path):
     early = PracticeState(trial=5, trials=state.trials[:5], failed_since_repair=list(range(5)))
     practice.repairs.repair(early)                                # room left: the repair loop runs as ever
     assert "trials are left" not in early.revisions[-1].reason
+
+
+def test_deliberate_practice_pushes_its_exploring_trials_where_it_fails_more(tmp_path):
+    """Plain trials keep the scenario's mix; exploring ones go where the robot is weaker."""
+    model = _model(tmp_path)
+    pushes = []
+    practice = Practice(model, tmp_path / "p", PracticeConfig(learn=True, deliberate=True), name="c",
+                        perturb=lambda k: "scheduled" if k % 4 < 2 else None, push=lambda k: pushes.append(k) or "push")
+
+    def state(pushed_ok: list[bool], unpushed_ok: list[bool]) -> PracticeState:
+        trials = [TrialRecord(trial=i, success=ok, pushed=True) for i, ok in enumerate(pushed_ok)]
+        trials += [TrialRecord(trial=len(trials) + i, success=ok) for i, ok in enumerate(unpushed_ok)]
+        return PracticeState(trial=len(trials), trials=trials)
+
+    weak_pushed = state([False, False, True], [True, True, True])
+    assert practice._perturbation(weak_pushed, 7, explores=True) == "push" and pushes == [7]
+    assert practice._perturbation(weak_pushed, 7, explores=False) is None           # plain: as scheduled
+    assert practice._perturbation(weak_pushed, 8, explores=False) == "scheduled"
+    weak_unpushed = state([True, True], [False, True, False])
+    assert practice._perturbation(weak_unpushed, 8, explores=True) is None
+    assert practice._perturbation(state([True], [True]), 8, explores=True) == "scheduled"   # a tie: as scheduled
+    off = Practice(model, tmp_path / "q", PracticeConfig(learn=True), name="c",
+                   perturb=lambda k: None, push=lambda k: "push")
+    assert off._perturbation(weak_pushed, 7, explores=True) is None
+
+
+def test_practice_stops_at_its_robot_time_budget(tmp_path, mountain_car_class):
+    import multiform
+    task = mountain_car_class()
+    demos = multiform.record(task, tmp_path / "demos.h5", demos=4, workers=1)
+    model = multiform.train(task.SKILL, demos, tmp_path / "model", task=task, log=lambda s: None)
+    sc = task.scenarios()[0]
+    cfg = replace(sc.practice_config(max_trials=50, seed=0), max_robot_seconds=300.0, success_streak=0)
+    state = Practice(model, tmp_path / "p", cfg, options=sc.options, name=sc.name).run()
+    assert state.stop_reason.startswith("used") and state.robot_seconds() >= 300.0
+    assert state.robot_seconds() - state.trials[-1].duration < 300.0

@@ -138,7 +138,8 @@ class Pendulum(Task):
                      perturb=self.pushed(1_000, 1.0)),
             Scenario("c_keep", "(c) practice as evaluated (random starts, pushes on half the trials), learning from "
                                "its own graded experience", self.trial_options, perturb=self.pushed(2_000, 0.5),
-                     learn=True, mentor=self.mentor_grader, takeover=self.mentor_takeover),
+                     learn=True, mentor=self.mentor_grader, takeover=self.mentor_takeover,
+                     push=self.pushed(2_000, 1.0)),
         ]
 
     def ablations(self, model, out, cfg) -> Iterator:

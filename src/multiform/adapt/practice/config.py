@@ -54,6 +54,8 @@ class PracticeConfig:
     novelty: float = 0.5                # own samples join a law only where its mentor-only fit is this unsure
     floor_exam: float = -4.0            # a state σ(-4) ≈ 1/50 as likely to be in its place as at its boundary
     check_demonstrations: bool = True
+    deliberate: bool = False            # exploring trials pushed or not as the robot's weaker condition asks
+    max_robot_seconds: float = 0.0      # practice stops once its trials add up to this much robot time (0: no limit)
 
     def budgets(self, takes_over: bool) -> tuple[int, int]:
         """(trials the mentor grades, failed trials it takes over) of ``mentor_trials``: half and
@@ -77,7 +79,10 @@ class PracticeConfig:
             if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v)
                                            and 0.0 <= v <= (10.0 if name == "explore" else 1.0)):
                 raise InvalidInput(f"out of range: {v!r}", element=name)
-        for name in ("learn", "exam", "check_demonstrations"):
+        v = self.max_robot_seconds
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0.0 <= v <= 1e7):
+            raise InvalidInput(f"must be seconds in 0..10000000, got {v!r}", element="max_robot_seconds")
+        for name in ("learn", "exam", "check_demonstrations", "deliberate"):
             if not isinstance(getattr(self, name), bool):
                 raise InvalidInput(f"must be true or false, got {getattr(self, name)!r}", element=name)
 

@@ -48,12 +48,13 @@ class Practice:
     def __init__(self, model: SkillModel, folder: str | Path, config: PracticeConfig | None = None,
                  options: Options | None = None, perturb: Perturb | None = None, name: str = "practice",
                  mentor: MentorGrader | None = None, observe: Observe | None = None,
-                 takeover: TakeoverFn | None = None):
+                 takeover: TakeoverFn | None = None, push: Perturb | None = None):
         self.model = model
         self.folder = Path(folder)
         self.config = config or PracticeConfig()
         self.options = options or (lambda k: {})
         self.perturb = perturb
+        self.push = push                # draw -> the experimenter's push, whether scheduled or not (deliberate practice)
         self.name = name
         self.observe = observe          # trial index, executor -> an executor observer (e.g. the live view) or None
         self.ctx = Context(model, self.config, name, ModelLearners(model, seed=self.config.seed),
@@ -120,6 +121,9 @@ class Practice:
             if state.trial >= cfg.max_trials:
                 state.done, state.stop_reason = True, f"reached {cfg.max_trials} trials"
                 break
+            if cfg.max_robot_seconds and state.robot_seconds() >= cfg.max_robot_seconds:
+                state.done, state.stop_reason = True, f"used {state.robot_seconds():.0f} s of robot time"
+                break
             if stop_after is not None and ran >= stop_after:
                 break
             if self.model.version != version:
@@ -129,7 +133,7 @@ class Practice:
                 judges = self.model.judges()
             k = state.trial
             t0 = time.perf_counter()
-            trace, draw, explores, view = self._trial(state, executor, explorer)
+            trace, draw, explores, pushed, view = self._trial(state, executor, explorer)
             if trace.outcome == "fault":
                 # a non-finite value is the model's or the simulator's fault, not the skill's: nothing
                 # is learned or repaired from it, and practice stops until someone looks
@@ -143,6 +147,7 @@ class Practice:
                     view.grade(grade, success)
                 view.close()
             record = self._record(k, draw, version, trace, grade, success, explores, t0)
+            record.pushed = pushed
             if cfg.learn and grade is not None:
                 self.learning.learn_from(state, record, trace, grade, executor.apn)
                 if record.mentor is not None and record.mentor.revised is not None:
@@ -162,9 +167,10 @@ class Practice:
         return state
 
     def _trial(self, state: PracticeState, executor: Executor, explorer: Executor | None
-               ) -> tuple[Trace, int, bool, Any]:
+               ) -> tuple[Trace, int, bool, bool, Any]:
         """Run trial ``state.trial`` on its own draw, or on the draw an exam replays; exploring when
-        due and not replaying. Returns its trace, the draw, whether it explored, and its view (or None)."""
+        due and not replaying. Returns its trace, the draw, whether it explored, whether it was
+        pushed, and its view (or None)."""
         cfg = self.config
         k = state.trial
         draw = self.watch.exam_draw(state)
@@ -176,9 +182,26 @@ class Practice:
                 explorer.laws[law].reseed(cfg.trial_seed(k) * 31 + i)
             runner = explorer
         view = self.observe(k, executor) if self.observe else None
-        trace = runner.run(seed=cfg.trial_seed(draw), options=self.options(draw),
-                           perturb=self.perturb(draw) if self.perturb else None, observer=view)
-        return trace, draw, explores, view
+        perturb = self._perturbation(state, draw, explores)
+        trace = runner.run(seed=cfg.trial_seed(draw), options=self.options(draw), perturb=perturb, observer=view)
+        return trace, draw, explores, perturb is not None, view
+
+    def _perturbation(self, state: PracticeState, draw: int, explores: bool) -> Any:
+        """The experimenter's push in this trial: the scenario's (the evaluation's mix) on a plain
+        trial; with ``deliberate``, on an exploring one wherever the robot is weaker: pushed if its
+        plain trials fail more often pushed than not (Laplace estimates of the last
+        ``target_window`` of each), not pushed if the other way round, as scheduled on a tie."""
+        scheduled = self.perturb(draw) if self.perturb else None
+        if not (explores and self.config.deliberate and self.push is not None):
+            return scheduled
+        n = self.config.target_window
+        rates = {}
+        for pushed in (True, False):
+            last = [t.success for t in state.plain() if t.pushed == pushed][-n:]
+            rates[pushed] = (sum(last) + 1) / (len(last) + 2)
+        if rates[True] == rates[False]:
+            return scheduled
+        return self.push(draw) if rates[True] < rates[False] else None
 
     def _record(self, k: int, draw: int, version: int, trace: Trace, grade: Any, success: bool, explores: bool,
                 t0: float) -> TrialRecord:

@@ -64,6 +64,7 @@ class TrialRecord:
     time: str = ""
     evidence: bool = True                  # False: it ended for a reason outside the net (no evidence for repair)
     explored: bool = False
+    pushed: bool = False                   # the experimenter pushed in it
     draw: int | None = None                # the trial whose draw it replayed (an exam); None: its own
     mentor: MentorGrade | None = None
     takeover: Takeover | None = None
@@ -181,6 +182,10 @@ class PracticeState:
         """The plain trials net version ``version`` ran."""
         return [t for t in self.plain() if t.net_version == version]
 
+    def robot_seconds(self) -> float:
+        """The robot time its trials took [s]."""
+        return float(sum(t.duration for t in self.trials))
+
     def last_revision_trial(self) -> int:
         """The trial after which the last revision (or no-repair record) was made; -1 before any."""
         return max((r.after_trial for r in self.revisions), default=-1)
@@ -199,7 +204,7 @@ def _trial_json(t: TrialRecord) -> dict[str, Any]:
     for key in ("draw", "mentor", "takeover"):
         if d[key] is None:
             del d[key]
-    for key, default in (("evidence", True), ("explored", False), ("own_segments", 0)):
+    for key, default in (("evidence", True), ("explored", False), ("pushed", False), ("own_segments", 0)):
         if d[key] == default:
             del d[key]
     return d
