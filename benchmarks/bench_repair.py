@@ -118,6 +118,21 @@ KINDS = [
          _law("t1", "swing_up")),
     Kind("missing_stop", "pendulum", "the success stop t6 is missing (the mentor never tags a stop: its "
          "demonstrations just end, balanced)", (None,), _drop("t6")),
+    # plain mistakes written in other forms than the ones above (no bound to move, a clock, a weight
+    # that is not zero, a repeat's law)
+    Kind("switch_always", "pendulum", "t1 written as always true: it switches to balancing with the pendulum hanging",
+         (None,), _cond("t1", "true")),
+    Kind("switch_on_a_clock", "pendulum", "t1 written as a clock: it switches to balancing this many s into the "
+         "swing-up, wherever the pendulum is", (0.1, 1.0), _cond("t1", "dwell > {s}")),
+    Kind("switch_unbounded", "pendulum", "t1 with a bound no state crosses", (4.0,), _cond("t1", "abs(theta) < {s}")),
+    Kind("switch_strict_rate", "pendulum", "t1 demands the pendulum at rest to this angular velocity (sound: 2 rad/s)",
+         (0.05, 0.01), _cond("t1", "abs(theta) < 0.3 and abs(omega) < {s} and abs(x) < 0.25")),
+    Kind("low_weight", "pendulum", "λ of t1 is this small beside its sibling t2's 1.0", (0.001,),
+         lambda d, s: d["transitions"]["t1"].update(**{"lambda": s})),
+    Kind("repeat_wrong_law", "pendulum", "t3 (repeat balancing) runs the swing-up law", (None,),
+         _law("t3", "swing_up")),
+    Kind("giveup_on_a_clock", "pendulum", "t4 gives up the swing-up at this trial time (sound: after 12 repeats)",
+         (3.0, 6.0), _cond("t4", "time > {s}")),
     # -- nunchaku ------------------------------------------------------------------------------------
     Kind("strict_release", "nunchaku", "t2 (release) demands more rod angle and speed: bounds scaled by the strength",
          (1.3, 1.6), _scaled_release,
@@ -134,6 +149,8 @@ KINDS = [
          (1.5, 1.0), _cond("t6", "fires_t1 >= 3 and dwell > 1.0 or time > {s}")),
     Kind("missing_stop_nunchaku", "nunchaku", "the success stop t5 is missing (the mentor's demonstrations tag it)",
          (None,), _drop("t5")),
+    Kind("release_always", "nunchaku", "t2 (release) written as always true after the first swing: it lets go at "
+         "once", (None,), _cond("t2", "fires_t1 >= 1")),
     Kind("wrong_branch_nunchaku", "nunchaku", "an extra release from swung-up taken when φ exceeds the strength",
          (1.0, 0.5), _extra("t9", {"label": "release early", "in": ["P1"], "out": ["P2"], "law": "release",
                                    "lambda": 1.0, "condition": "fires_t1 >= 1 and phi > {s}"})),
