@@ -671,12 +671,10 @@ def test_a_non_finite_value_ends_the_trial_as_a_fault_before_it_reaches_mujoco(l
     elif where == "simulator_state":
         perturb = _sim_nan(300)
     else:
-        inner = env.unwrapped._observe
-
-        def observe():
-            obs = inner()
-            return obs * np.nan if env.unwrapped.data.time > 0.3 else obs
-        env.unwrapped._observe = observe
+        from gymnasium.wrappers import TransformObservation
+        base = env
+        env = TransformObservation(base, lambda obs: obs * np.nan if base.unwrapped.data.time > 0.3 else obs,
+                                   base.observation_space)
     ex = Executor(model.apn, env, laws, model.conditions(), inverse)
     trace = ex.run(seed=5, perturb=perturb)
     assert trace.outcome == "fault" and not trace.success

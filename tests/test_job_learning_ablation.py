@@ -52,12 +52,12 @@ def test_the_repair_only_skill_is_evaluated_beside_the_learned_one(car, tmp_path
     job = Job(task, tmp_path / "run", JobConfig(learn=learn, ablation_trials=7), log=lambda *a: None, progress=False)
     repaired = _revise(model, "practice")
     ev = Queue()
-    assert job._repair_only(model, ev) == []          # learning has revised nothing yet: the same skill
+    assert job.repair_only(model, ev) == []          # learning has revised nothing yet: the same skill
     main, _ = job.evaluate(model, Queue(), queued=[])
     assert ("learning from practice revised nothing" in main["notes"]) is learn     # and the table says so
     _revise(model, "keep")
     _revise(model, "keep")
-    rows = job._repair_only(model, ev)
+    rows = job.repair_only(model, ev)
     if not learn:
         assert rows == [] and ev.submitted == []
         return

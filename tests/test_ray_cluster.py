@@ -209,7 +209,7 @@ def test_the_model_travels_as_bytes_and_is_verified_where_it_lands(lab, tmp_path
         cluster.materialise(bad, tmp_path / "other")
     assert not (tmp_path / "other").exists()
     # changed by its sender consistently (the digest recomputed): the model's own hashes refuse it
-    forged = {"files": bad["files"], "digest": cluster._digest(bad["files"])}
+    forged = {"files": bad["files"], "digest": cluster.pack_digest(bad["files"])}
     with pytest.raises(InvalidInput, match="SHA-256"):
         cluster.materialise(forged, tmp_path / "other")
 

@@ -95,8 +95,10 @@ def test_a_scenario_on_a_changed_object_overrides_its_reset_options():
     assert (changed.name, changed.learn, changed.push) == (sc.name, sc.learn, sc.push)
 
 
-def test_options_for_a_changed_object_are_checked_as_plain_data():
-    from multiform.api import _reset_options
-    assert _reset_options({"length": 0.24}) == {"length": 0.24}
-    with pytest.raises(InvalidInput, match="options"):
-        _reset_options({"length": float("inf")})
+@pytest.mark.parametrize("text", ['{"length": 1e999}', '[0.24]', '{"length": '])
+def test_options_for_a_changed_object_are_checked_as_plain_data(text):
+    from multiform.cli import build_parser
+    assert build_parser().parse_args(["practice", "m", "--options", '{"length": 0.24}']).options == {"length": 0.24}
+    with pytest.raises(SystemExit) as info:
+        build_parser().parse_args(["practice", "m", "--options", text])
+    assert info.value.code == 2

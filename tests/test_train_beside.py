@@ -33,10 +33,10 @@ def _fails(model, seed, log, laws_ready):
 
 
 def test_trainer_waits_for_the_laws_and_its_log_comes_back(tmp_path):
-    beside = trainer._Beside(_waits_for_laws, SimpleNamespace(path=tmp_path), seed=7)
+    beside = trainer.Beside(_waits_for_laws, SimpleNamespace(path=tmp_path), seed=7)
     try:
         time.sleep(0.3)
-        assert beside._proc.is_alive() and not (tmp_path / "exercised").exists()
+        assert beside.process.is_alive() and not (tmp_path / "exercised").exists()
         beside.laws_ready()
         lines: list[str] = []
         assert beside.result(lines.append) == {"seed": 7}
@@ -44,11 +44,11 @@ def test_trainer_waits_for_the_laws_and_its_log_comes_back(tmp_path):
         assert (tmp_path / "exercised").exists()
     finally:
         beside.close()
-    assert not beside._proc.is_alive()
+    assert not beside.process.is_alive()
 
 
 def test_a_failing_trainer_raises_here_with_its_reason(tmp_path):
-    beside = trainer._Beside(_fails, SimpleNamespace(path=tmp_path), seed=0)
+    beside = trainer.Beside(_fails, SimpleNamespace(path=tmp_path), seed=0)
     lines: list[str] = []
     try:
         with pytest.raises(RuntimeError, match="no pendulum mounted"):
@@ -59,9 +59,9 @@ def test_a_failing_trainer_raises_here_with_its_reason(tmp_path):
 
 
 def test_a_failure_here_ends_the_waiting_trainer(tmp_path):
-    beside = trainer._Beside(_waits_for_laws, SimpleNamespace(path=tmp_path), seed=0)
+    beside = trainer.Beside(_waits_for_laws, SimpleNamespace(path=tmp_path), seed=0)
     time.sleep(0.2)
     t0 = time.perf_counter()
     beside.close()                     # as train_model's finally does when a law fit raised
-    assert time.perf_counter() - t0 < 2.0 and not beside._proc.is_alive()
+    assert time.perf_counter() - t0 < 2.0 and not beside.process.is_alive()
     assert not (tmp_path / "exercised").exists()

@@ -1,5 +1,4 @@
 """The tutorial's task: Gymnasium's MountainCarContinuous-v0 as a multiform task."""
-
 from pathlib import Path
 
 import gymnasium as gym
@@ -15,8 +14,6 @@ if ENV_ID not in gym.registry:      # the env with named entries; the net, not t
 
 class Mentor:
     """A scripted person at the controls: backs up until the car stops, then charges right."""
-
-    name = "scripted"
 
     def reset(self, obs, rng):
         self.charging, self.at_flag = False, False

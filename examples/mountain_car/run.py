@@ -1,6 +1,4 @@
-"""Teach the mountain car: scripted demonstrations, training, practice (a repair, then learning from
-its own graded trials), evaluation."""
-
+"""Teach the mountain car: demonstrations, training, practice (repair, then learning), evaluation."""
 import sys
 from pathlib import Path
 
@@ -13,10 +11,8 @@ demos = multiform.record(task, out / "demos.h5", demos=task.DEMOS)
 model = multiform.train(task.SKILL, demos, out / "model", task=task)
 for scenario in multiform.scenario_names(task):      # "practice" repairs the net, "keep" also learns
     state = multiform.practise(model, task, scenario=scenario, max_trials=40)
-    explored = sum(t.explored for t in state.trials)
-    own = sum(t.own_segments for t in state.trials)
-    print(f"{scenario}: {len(state.trials)} trials ({explored} exploring), {own} segments of its own kept for "
-          f"its laws; {state.stop_reason}")
+    print(f"{scenario}: {len(state.trials)} trials ({sum(t.explored for t in state.trials)} exploring), "
+          f"{sum(t.own_segments for t in state.trials)} segments of its own kept for its laws; {state.stop_reason}")
     for r in state.revisions:
         print(f"revision {r.version}: {r.operator} {r.target} — {r.reason}")
 result = multiform.evaluate(model, task, trials=20)

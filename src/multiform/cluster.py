@@ -123,12 +123,13 @@ def pack_model(path: str | os.PathLike, attempts: int = 5, env_modules: Sequence
         files = {"model.json": manifest, **{rel: (root / rel).read_bytes() for rel in listed}}
         files.update({n: (root / n).read_bytes() for n in MODEL_EXTRA_FILES if (root / n).is_file()})
         if all(hashlib.sha256(files[rel]).hexdigest() == info["sha256"] for rel, info in listed.items()):
-            return {"digest": _digest(files), "files": files}
+            return {"digest": pack_digest(files), "files": files}
         time.sleep(0.2)
     raise InvalidInput("kept changing while it was read for the cluster", file=str(root))
 
 
-def _digest(files: dict[str, bytes]) -> str:
+def pack_digest(files: dict[str, bytes]) -> str:
+    """The digest of a packed model's files (their names and SHA-256s)."""
     h = hashlib.sha256()
     for name in sorted(files):
         h.update(name.encode() + b"\0" + hashlib.sha256(files[name]).digest())
@@ -142,7 +143,7 @@ def materialise(pack: dict[str, Any], root: str | os.PathLike | None = None, env
     ``env_modules``); returns the folder."""
     from .model import SkillModel
     files: dict[str, bytes] = pack["files"]
-    if _digest(files) != pack["digest"]:
+    if pack_digest(files) != pack["digest"]:
         raise InvalidInput("arrived damaged (digest differs)", file=f"packed model {pack['digest'][:12]}")
     base = Path(root or tempfile.gettempdir()) / "multiform-models"
     final = base / pack["digest"]

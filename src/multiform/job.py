@@ -190,7 +190,7 @@ class Job:
             queued.append((variant, ev.submit(variant, sub, lambda bar=bar: bar.update(1)), bar))
         return queued
 
-    def _repair_only(self, model: SkillModel, ev: Evaluator) -> list[tuple[Variant, list, tqdm]]:
+    def repair_only(self, model: SkillModel, ev: Evaluator) -> list[tuple[Variant, list, tqdm]]:
         """With learning from practice: the skill as the repair scenarios left it (the net and laws
         before learning; the same model directory at that net version), on the ablation trials."""
         if not self.cfg.learn or not self.cfg.ablation_trials:
@@ -226,7 +226,7 @@ class Job:
         self.log(f"  final success rate {100 * main['rate']:.1f} % ({main['successes']}/{main['trials']}, "
                  f"95 % CI {100 * main['low']:.1f}-{100 * main['high']:.1f} %)")
         rows = [main]
-        queued = list(queued if queued is not None else self.baselines(model, ev)) + self._repair_only(model, ev)
+        queued = list(queued if queued is not None else self.baselines(model, ev)) + self.repair_only(model, ev)
         for variant, futures, bar in queued:
             r = ev.collect(variant, futures)
             bar.close()

@@ -41,7 +41,7 @@ def train_model(model: SkillModel, seed: int = 0, log: Log = print,
     summary: dict[str, Any] = dict(done)
     need_inverse = inverse_trainer is not None and ("inverse_model" not in summary
                                                     or not (model.path / "inverse_model.npz").exists())
-    other = _Beside(inverse_trainer, model, seed) if need_inverse and beside else None
+    other = Beside(inverse_trainer, model, seed) if need_inverse and beside else None
     try:
         _fit_definition(model, apn, eps, store, summary, seed, log,
                         laws_ready=other.laws_ready if other is not None else lambda: None)
@@ -115,7 +115,7 @@ def _from_demonstrations(model: SkillModel, element: str) -> Iterator[None]:
                            element=element) from None
 
 
-class _Beside:
+class Beside:
     """The inverse-model trainer in a forked process, started at once; it waits for
     :meth:`laws_ready` before it uses the laws. Its log lines are replayed here with its result.
     The process is a daemon (it ends with this one), so the trainer may not start processes itself."""
@@ -125,9 +125,9 @@ class _Beside:
         ctx = mp.get_context("fork")
         self._ready = ctx.Event()
         self._recv, send = ctx.Pipe(duplex=False)
-        self._proc = ctx.Process(target=_train_beside, args=(trainer, str(model.path), seed, self._ready, send),
+        self.process = ctx.Process(target=_train_beside, args=(trainer, str(model.path), seed, self._ready, send),
                                  name="inverse-model", daemon=True)
-        self._proc.start()
+        self.process.start()
         send.close()
 
     def laws_ready(self) -> None:
@@ -137,8 +137,8 @@ class _Beside:
         try:
             ok, payload, lines = self._recv.recv()
         except EOFError:
-            self._proc.join()
-            raise RuntimeError(f"the inverse-model process ended without a result (exit code {self._proc.exitcode})"
+            self.process.join()
+            raise RuntimeError(f"the inverse-model process ended without a result (exit code {self.process.exitcode})"
                                ) from None
         for line in lines:
             log(line)
@@ -149,10 +149,10 @@ class _Beside:
     def close(self) -> None:
         """Join the process; one still waiting for laws that will not come (this process failed
         first) is terminated."""
-        self._proc.join(timeout=5.0 if self._ready.is_set() else 0.0)
-        if self._proc.is_alive():
-            self._proc.terminate()
-            self._proc.join()
+        self.process.join(timeout=5.0 if self._ready.is_set() else 0.0)
+        if self.process.is_alive():
+            self.process.terminate()
+            self.process.join()
         self._recv.close()
 
 

@@ -405,15 +405,15 @@ def test_deliberate_practice_pushes_its_exploring_trials_where_it_fails_more(tmp
         return PracticeState(trial=len(trials), trials=trials)
 
     weak_pushed = state([False, False, True], [True, True, True])
-    assert practice._perturbation(weak_pushed, 7, explores=True) == "push" and pushes == [7]
-    assert practice._perturbation(weak_pushed, 7, explores=False) is None           # plain: as scheduled
-    assert practice._perturbation(weak_pushed, 8, explores=False) == "scheduled"
+    assert practice.perturbation(weak_pushed, 7, explores=True) == "push" and pushes == [7]
+    assert practice.perturbation(weak_pushed, 7, explores=False) is None           # plain: as scheduled
+    assert practice.perturbation(weak_pushed, 8, explores=False) == "scheduled"
     weak_unpushed = state([True, True], [False, True, False])
-    assert practice._perturbation(weak_unpushed, 8, explores=True) is None
-    assert practice._perturbation(state([True], [True]), 8, explores=True) == "scheduled"   # a tie: as scheduled
+    assert practice.perturbation(weak_unpushed, 8, explores=True) is None
+    assert practice.perturbation(state([True], [True]), 8, explores=True) == "scheduled"   # a tie: as scheduled
     off = Practice(model, tmp_path / "q", PracticeConfig(learn=True), name="c",
                    perturb=lambda k: None, push=lambda k: "push")
-    assert off._perturbation(weak_pushed, 7, explores=True) is None
+    assert off.perturbation(weak_pushed, 7, explores=True) is None
 
 
 def test_practice_stops_at_its_robot_time_budget(tmp_path, mountain_car_class):

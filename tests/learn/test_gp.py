@@ -191,7 +191,7 @@ def test_predict_one_equals_batch_of_one_in_every_mode():
     for name, g in _laws(X, Y).items():
         mean, std = g.predict(Xq, return_std=True)
         ref = clone(g).set_params(fast_exp=False).fit(X, Y)
-        fast_tol = FAST_EXP_TOL * float(g.y_scale_.min()) if g._fast else 1e-12
+        fast_tol = FAST_EXP_TOL * float(g.y_scale_.min()) if g.fast_exp_ else 1e-12
         for i, x in enumerate(Xq):
             m1 = g.predict_one(x)
             m2, v2 = g.predict_one_var(x)

@@ -88,7 +88,7 @@ def test_fast_mean_agrees_with_float64_and_eq5(which):
     y_scale = g.y_scale_
     assert np.max(np.abs(f64 - direct) / y_scale) < 1e-9
     err = np.max(np.abs(fast - direct) / y_scale)
-    if g._fast:
+    if g.fast_exp_:
         assert g.fast_exp_error_ <= FAST_EXP_PROBE_TOL
         assert err <= FAST_EXP_TOL, err
         assert err <= 5 * g.fast_exp_error_ + 1e-12, (err, g.fast_exp_error_)
@@ -99,7 +99,7 @@ def test_fast_mean_agrees_with_float64_and_eq5(which):
     mv = np.array([g.predict_one_var(x)[0] for x in Xq[:100]]).reshape(100, -1)
     assert np.max(np.abs(mv - direct[:100]) / y_scale) < 1e-9
     if which != "smooth_sparse":
-        assert g._fast, g.fast_exp_error_
+        assert g.fast_exp_, g.fast_exp_error_
 
 
 def test_large_weights_keep_the_float64_path():
@@ -110,7 +110,7 @@ def test_large_weights_keep_the_float64_path():
     y = np.sin(3 * X[:, 0]) + X[:, 1] ** 2
     g = GPLaw(exact_var_max_n=None, theta=np.log([0.8, 0.8, 1.0, 1e-5])).fit(X, y)
     assert np.abs(g.alpha_).max() > 1e4
-    assert not g._fast and g.fast_exp_error_ > FAST_EXP_PROBE_TOL
+    assert not g.fast_exp_ and g.fast_exp_error_ > FAST_EXP_PROBE_TOL
     Xq = states(X, rng, 100)
     np.testing.assert_allclose([g.predict_one(x)[0] for x in Xq], eq5(g, Xq)[:, 0], rtol=1e-9, atol=1e-9)
 

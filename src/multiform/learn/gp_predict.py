@@ -77,7 +77,7 @@ class GPPrediction:
         self._no_affine, self._no_lw = np.empty(0), np.zeros((0, self._mW.shape[1]))
         self._mean_lw = self._lw if self._linear else self._no_lw
         self.fast_exp_error_ = self._fast_exp_error() if getattr(self, "fast_exp", True) else None
-        self._fast = self.fast_exp_error_ is not None and self.fast_exp_error_ <= FAST_EXP_PROBE_TOL
+        self.fast_exp_ = self.fast_exp_error_ is not None and self.fast_exp_error_ <= FAST_EXP_PROBE_TOL
 
     def _fast_exp_error(self) -> float:
         """Largest deviation of the float32-exponential mean from the float64 one, relative to
@@ -123,11 +123,11 @@ class GPPrediction:
         """
         if self._compiled_mean:
             return gp_mean_one(x, x if self._linear else self._no_affine, self._w, self._b, self._mZaug, self._mW,
-                               self._lb, self._mean_lw, self._fast)
+                               self._lb, self._mean_lw, self.fast_exp_)
         ua = self._load_state(x)
         buf = self._mbuf
         _dot(self._mZaug, ua, buf)
-        if self._fast:
+        if self.fast_exp_:
             _exp(buf, buf, dtype=np.float32, casting="same_kind")
         else:
             _exp(buf, buf)
@@ -144,7 +144,7 @@ class GPPrediction:
         residual of a linear fit (:class:`~multiform.learn.inverse.InverseDynamicsModel`)."""
         W = np.asarray(W, dtype=np.float64)
         lw = np.vstack([self._lw, W]) if self._linear else W
-        plan = (self._w, self._b, self._mZaug, self._mW, self._lb + b, np.ascontiguousarray(lw), self._fast)
+        plan = (self._w, self._b, self._mZaug, self._mW, self._lb + b, np.ascontiguousarray(lw), self.fast_exp_)
         return plan, self._linear
 
     def predict_one_var(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

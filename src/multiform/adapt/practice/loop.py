@@ -182,11 +182,11 @@ class Practice:
                 explorer.laws[law].reseed(cfg.trial_seed(k) * 31 + i)
             runner = explorer
         view = self.observe(k, executor) if self.observe else None
-        perturb = self._perturbation(state, draw, explores)
+        perturb = self.perturbation(state, draw, explores)
         trace = runner.run(seed=cfg.trial_seed(draw), options=self.options(draw), perturb=perturb, observer=view)
         return trace, draw, explores, perturb is not None, view
 
-    def _perturbation(self, state: PracticeState, draw: int, explores: bool) -> Any:
+    def perturbation(self, state: PracticeState, draw: int, explores: bool) -> Any:
         """The experimenter's push in this trial: the scenario's (the evaluation's mix) on a plain
         trial; with ``deliberate``, on an exploring one wherever the robot is weaker: pushed if its
         plain trials fail more often pushed than not (Laplace estimates of the last
