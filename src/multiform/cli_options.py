@@ -210,6 +210,9 @@ def _add_demonstration_commands(sub: argparse._SubParsersAction, h: Handlers) ->
     _add_workers(p, _default(api.record, "workers"))
     p.add_argument("--seed", type=_count(0, 40_000), default=_default(api.record, "seed"),
                    help="demo i starts from seed 100000 * SEED + i")
+    p.add_argument("--mentor", default=None, metavar="NAME",
+                   help="which of the task's scripted mentors demonstrates (pendulum and nunchaku: expert, average, "
+                        "poor); its name is stored with every demo and label (default: the task's default mentor)")
     _add_ray(p)
     p.set_defaults(func=h["record"])
 
@@ -242,8 +245,21 @@ def _add_demonstration_commands(sub: argparse._SubParsersAction, h: Handlers) ->
     p.add_argument("--transition", default="t0", help="tag of every frame when there are no subtasks")
     p.add_argument("--skill", help="skill name to record (default: the dataset's)")
     p.add_argument("--env", help="env id to record (default: the dataset's)")
+    p.add_argument("--mentor", default="", metavar="NAME",
+                   help="who demonstrated the episodes that do not say (default: nobody named)")
     _add_overwrite(p, "--out")
     p.set_defaults(func=h["demos_import"])
+    p = dsub.add_parser("merge", help="merge several people's demonstration files into one (HDF5)",
+                        description="Every demo keeps its mentor and labels; the merged file has one robomimic "
+                                    "filter key per mentor (mask/mentor_NAME). Files of different skills, envs, "
+                                    "variables, commands or control periods are refused.")
+    p.add_argument("demos", nargs="+", help="demonstration files (.h5), in the order their demos are to appear")
+    p.add_argument("--out", "-o", required=True, help="output .h5 file")
+    p.add_argument("--mentor", action="append", default=[], metavar="FILE=NAME",
+                   help="the mentor of FILE's demos where the file records none, repeatable (default: none; such "
+                        "a file is refused)")
+    _add_overwrite(p, "--out")
+    p.set_defaults(func=h["demos_merge"])
 
 
 def _add_teaching_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
@@ -265,7 +281,8 @@ def _add_teaching_commands(sub: argparse._SubParsersAction, h: Handlers) -> None
     p.add_argument("--max-duration", type=float, default=60.0, help="seconds of simulated time at most")
     p.add_argument("--seed", type=_count(0, MAX_SEED), default=None,
                    help="start state (default: the number of demos in the file)")
-    p.add_argument("--labeller", default="human", help="your name, stored with your labels")
+    p.add_argument("--mentor", "--labeller", dest="labeller", default="human", metavar="NAME",
+                   help="your name, stored with your demonstration and your labels")
     p.set_defaults(func=h["teleop"])
 
     p = sub.add_parser("label", help="label segments of demos or recorded trials success/failure (s/f keys)",
@@ -275,7 +292,8 @@ def _add_teaching_commands(sub: argparse._SubParsersAction, h: Handlers) -> None
                                    "earlier labels are never lost, a later verdict supersedes for training.")
     p.add_argument("source", help="demonstration file (.h5), trial trace (.npz), or practice folder of traces")
     p.add_argument("--model", "-m", required=True, help="skill model directory")
-    p.add_argument("--labeller", default=None, help="your name (default: your login name)")
+    p.add_argument("--mentor", "--labeller", dest="labeller", default=None, metavar="NAME",
+                   help="your name, stored with every label (default: your login name)")
     p.add_argument("--script", default=None,
                    help="the keys to use instead of the terminal, e.g. sfsk (default: read keys from the terminal)")
     p.add_argument("--no-show", action="store_true", help="open no plot window")

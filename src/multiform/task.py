@@ -107,6 +107,7 @@ class Task:
     REPORT: dict[str, str] = {}                 # the report's words for its pictures
     ABLATIONS_AFTER_PRACTICE: bool = True       # baselines need the practised model (False: run beside practice)
     train_inverse_model: Any = None             # (model, seed=, log=, laws_ready=) -> info; None: direct commands
+    MENTORS: dict[str, dict[str, Any]] = {}     # named scripted mentors: name -> make_mentor arguments
 
     spec: str = ""                              # how load_task found it (set by load_task)
 
@@ -129,6 +130,17 @@ class Task:
         :func:`multiform.teach.record.record_many`'s ``mentor_kwargs``. Optionally ``grade_trial``:
         its verdict on each stay of a practice trial (:meth:`mentor_grader`)."""
         raise InvalidInput(f"task {self.TASK} has no scripted mentor; record demonstrations yourself", element="task")
+
+    def mentor_kwargs(self, name: str | None = None) -> dict[str, Any]:
+        """:meth:`make_mentor`'s arguments for the task's scripted mentor ``name`` (one of
+        ``MENTORS``; None: the task's default mentor, no arguments)."""
+        if name is None:
+            return {}
+        if name not in self.MENTORS:
+            known = ", ".join(self.MENTORS) or "none besides its default"
+            raise InvalidInput(f"task {self.TASK} has no scripted mentor {name!r}; its mentors: {known}",
+                               element="mentor")
+        return dict(self.MENTORS[name])
 
     def demo_push(self, seed: int) -> dict[str, Any] | None:
         """The experimenter's push in demonstration ``seed`` (:class:`multiform.teach.record.PushDuring`
