@@ -74,12 +74,13 @@ def merge_demos(demos: list[str | os.PathLike], out: str | os.PathLike, mentors:
 
 def train(skill: str | os.PathLike, demos: str | os.PathLike, out: str | os.PathLike, task: TaskLike | None = None,
           seed: int = 0, inverse_model: bool = False, overwrite: bool = False,
-          log: Callable[[str], None] = print) -> Any:
+          log: Callable[[str], None] = print, fusion: bool = True) -> Any:
     """Fit a skill model in the directory ``out`` from the skill file and the demos: a GP law per
     maneuver, an SVM judge per judged place, the place regions, and (``inverse_model``) the
     auxiliary inverse model of ``task`` (default: the bundled or installed task whose env recorded
-    the demos). The skill file's ``env:`` must be the demos' env. Returns the
-    :class:`~multiform.model.SkillModel`."""
+    the demos). The skill file's ``env:`` must be the demos' env. Demos of several mentors are
+    weighed by how far each is trusted (``MODEL/mentors.json``; docs/how-it-learns.md), or pooled
+    as one mentor's with ``fusion=False``. Returns the :class:`~multiform.model.SkillModel`."""
     from .demos.dataset import read_dataset
     from .job import train_model
     from .model import SkillModel, staged_model_dir
@@ -100,7 +101,7 @@ def train(skill: str | os.PathLike, demos: str | os.PathLike, out: str | os.Path
     with staged_model_dir(target) as partial:
         model = SkillModel.create(partial, skill, demos, ds.env_name, env_kwargs)
         log(f"training {model.apn.name} from {len(ds)} demos into {final}")
-        train_model(model, seed=seed, log=log, inverse_trainer=trainer, beside=True)
+        train_model(model, seed=seed, log=log, inverse_trainer=trainer, beside=True, fusion=fusion)
     if target != final:
         _swap_in(target, final)
     return SkillModel(final)

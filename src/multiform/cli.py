@@ -347,7 +347,7 @@ def cmd_label(args: argparse.Namespace) -> int:
 
 def cmd_train(args: argparse.Namespace) -> int:
     api.train(args.skill, args.demos, args.out, task=args.task, seed=args.seed, inverse_model=args.inverse_model,
-              overwrite=args.overwrite)
+              overwrite=args.overwrite, fusion=args.fusion)
     print(f"model ready: {args.out}")
     return 0
 
@@ -444,10 +444,16 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     from .job import Job, JobConfig
+    mentors = args.mentors
+    if mentors and not any(n for _, n in mentors):          # names only: --demos shared evenly, in order
+        from .task import load_task
+        total = args.demos or load_task(args.task).DEMOS
+        mentors = tuple((name, total // len(mentors) + (i < total % len(mentors))) for i, (name, _) in enumerate(mentors))
     cfg = JobConfig(demos=args.demos, eval_trials=args.eval_trials, ablation_trials=args.ablation_trials,
                     practice_max_trials=args.max_trials, workers=args.workers, seed=args.seed,
                     videos=not args.no_video, inverse_model=not args.reference_controller,
-                    learn=args.learn_from_practice, practice_budget=args.practice_budget, ray=args.ray)
+                    learn=args.learn_from_practice, practice_budget=args.practice_budget, ray=args.ray,
+                    mentors=mentors, fusion=args.fusion)
     m = Job(args.task, args.out, cfg, view=args.view).run()
     sr = m["success_rate"]
     print(f"success rate {100 * sr['rate']:.1f} % ({sr['successes']}/{sr['trials']}; 95 % CI "

@@ -316,6 +316,7 @@ def _add_model_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
     p.add_argument("--task", default=None, help=TASK_HELP + " (default: the one whose env recorded the demos)")
     p.add_argument("--seed", type=_count(0, MAX_SEED), default=_default(api.train, "seed"),
                    help="random state of every fit")
+    _add_fusion(p)
     p.set_defaults(func=h["train"])
 
     p = sub.add_parser("practice", help="practise a trained skill; repair the net on constant failure")
@@ -332,6 +333,31 @@ def _add_model_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
     _add_env_module(p)
     _add_view(p, "each trial (saved in the practice folder's view/)")
     p.set_defaults(func=h["practice"])
+
+
+def _add_fusion(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--fusion", action=argparse.BooleanOptionalAction, default=True,
+                   help="with demonstrations of several mentors, weigh each by how far it proves reliable, per "
+                        "maneuver and per place (MODEL/mentors.json); --no-fusion pools them as one mentor's")
+
+
+def _mentor_plan(text: str) -> tuple[tuple[str, int], ...]:
+    """``expert:5,poor:10`` (or ``expert,average,poor``: counts 0, spread by the job over --demos)."""
+    out = []
+    for part in text.split(","):
+        name, sep, count = part.strip().partition(":")
+        if not name:
+            raise argparse.ArgumentTypeError(f"a mentor needs a name, got {text!r}")
+        try:
+            n = int(count) if sep else 0
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a whole number of demos: {count!r}") from None
+        if sep and not 1 <= n <= 1000:
+            raise argparse.ArgumentTypeError(f"demos per mentor must be in 1..1000, got {n}")
+        out.append((name, n))
+    if any(n for _, n in out) and not all(n for _, n in out):
+        raise argparse.ArgumentTypeError(f"give every mentor a count or none, got {text!r}")
+    return tuple(out)
 
 
 def _add_env_module(p: argparse.ArgumentParser) -> None:
@@ -397,6 +423,11 @@ def _add_run_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
                    help="practice trials of all scenarios together at most")
     p.add_argument("--reference-controller", action="store_true",
                    help="drive the arm with the env's model-based controller instead of the learned inverse model")
+    p.add_argument("--mentors", type=_mentor_plan, default=(), metavar="NAME[:N],...",
+                   help="demonstrations by several of the task's scripted mentors, in order: expert:5,poor:10, or "
+                        "expert,average,poor to share --demos evenly; they also take turns grading practice trials "
+                        "(default: the task's default mentor alone)")
+    _add_fusion(p)
     _add_view(p, "the report's picked trials (saved in RUN/view/)")
     _add_ray(p)
     p.set_defaults(func=h["demo"])

@@ -27,9 +27,10 @@ from tqdm import tqdm
 from .evaluation import Evaluator, Variant
 from .demos.dataset import read_dataset, write_dataset
 from .demos.episode import Episode
-from .teach.record import demo_push, record_many
+from .teach.record import demo_push, record_by_mentors, record_many
 from .errors import InvalidInput
 from .io import write_json
+from .learn.fusion import estimate_fusion
 from .learn.labels import LabelStore
 from .learn.training import fit_judge, fit_law, fit_regions, judged_places, mentor_records
 from .lock import exclusive
@@ -62,6 +63,9 @@ class JobConfig:
     inverse_model: bool = True
     ray: str | None = None           # record and evaluate as Ray tasks: "auto", "local" or a cluster address
     start_method: str | None = None  # of the local pool (default: fork on Linux)
+    mentors: tuple[tuple[str, int], ...] = ()   # the task's named mentors and how many demos each records, in
+                                     # order (their counts add up to ``demos``); (): the task's default mentor
+    fusion: bool = True              # with several mentors, weigh them by estimated trust; False: pool them
 
 
 class Job:
@@ -73,7 +77,13 @@ class Job:
         self.out = Path(out)
         self.cfg = config or JobConfig()
         if self.cfg.demos is None:
-            self.cfg = replace(self.cfg, demos=int(self.task.DEMOS))
+            self.cfg = replace(self.cfg, demos=int(sum(n for _, n in self.cfg.mentors) or self.task.DEMOS))
+        if self.cfg.mentors:
+            for name, _ in self.cfg.mentors:
+                self.task.mentor_kwargs(name)             # an unknown mentor is refused before anything runs
+            if sum(n for _, n in self.cfg.mentors) != self.cfg.demos:
+                raise InvalidInput(f"the mentors' demonstrations {[n for _, n in self.cfg.mentors]} do not add up to "
+                                   f"{self.cfg.demos}", element="mentors")
         self.log = log
         self.progress = progress
         self.view = view            # None, or where the picked trials stream (see multiform.view.stream.viewer_url)
@@ -107,24 +117,39 @@ class Job:
                 old = read_dataset(path).episodes
             except InvalidInput:
                 old = []
-            if len(old) == len(seeds) and all(self._recorded_as_planned(e, s) for e, s in zip(old, seeds)):
+            if len(old) == len(seeds) and all(self._recorded_as_planned(e, s, m)
+                                              for e, s, m in zip(old, seeds, self._planned_mentors())):
                 self.log(f"  reusing {path}")
                 return path
         with self._bar(len(seeds), "recording demos", unit="demo") as bar:
-            eps = record_many(self._worker_task, seeds, self.task.DEMO_ENV_KWARGS, workers=self.cfg.workers,
-                              progress=lambda i, n: bar.update(1), start_method=self.cfg.start_method,
-                              ray=self.cfg.ray)
-        write_dataset(path, eps, self.task.SKILL, self.task.ENV_ID, self.task.DEMO_ENV_KWARGS,
-                      mentor=getattr(eps[0], "mentor", "") if eps else "")
-        ok = sum(e.outcome == "success" for e in eps)
-        self.log(f"  {len(eps)} demos, mentor succeeded in {ok} ({100 * ok / len(eps):.0f} %)")
+            if self.cfg.mentors:
+                eps = record_by_mentors(self._worker_task, seeds, self.cfg.mentors, self.task.DEMO_ENV_KWARGS,
+                                        workers=self.cfg.workers, progress=lambda i, n: bar.update(1),
+                                        start_method=self.cfg.start_method, ray=self.cfg.ray)
+            else:
+                eps = record_many(self._worker_task, seeds, self.task.DEMO_ENV_KWARGS, workers=self.cfg.workers,
+                                  progress=lambda i, n: bar.update(1), start_method=self.cfg.start_method,
+                                  ray=self.cfg.ray)
+        write_dataset(path, eps, self.task.SKILL, self.task.ENV_ID, self.task.DEMO_ENV_KWARGS)
+        for who in dict.fromkeys(e.mentor for e in eps):
+            mine = [e for e in eps if e.mentor == who]
+            ok = sum(e.outcome == "success" for e in mine)
+            self.log(f"  {len(mine)} demos by {who or 'the mentor'}, who succeeded in {ok} ({100 * ok / len(mine):.0f} %)")
         return path
 
-    def _recorded_as_planned(self, episode: Episode, seed: int) -> bool:
+    def _planned_mentors(self) -> list[str | None]:
+        """The name of the mentor each demo is to be recorded by (None: the task's default)."""
+        if not self.cfg.mentors:
+            return [None] * int(self.cfg.demos or 0)
+        return [name for name, n in self.cfg.mentors for _ in range(n)]
+
+    def _recorded_as_planned(self, episode: Episode, seed: int, mentor: str | None = None) -> bool:
         options = dict(episode.reset_options)
         pulses = options.pop("disturbances", None)
+        who = self.task.mentor_kwargs(mentor).get("name") if mentor is not None else None
         return (episode.seed == seed and options == self.task.demo_options(seed)
-                and (pulses is not None) == (demo_push(self.task, seed) is not None))
+                and (pulses is not None) == (demo_push(self.task, seed) is not None)
+                and (who is None or episode.mentor == who))
 
     # -- 2. training ------------------------------------------------------------------------------
     def train(self, demos: Path) -> SkillModel:
@@ -138,7 +163,8 @@ class Job:
             model = SkillModel.create(partial, self.task.SKILL, demos, self.task.ENV_ID,
                                       self.task.robot_env_kwargs(use_inverse))
             inverse = self.task.train_inverse_model if use_inverse else None
-            train_model(model, seed=self.cfg.seed, log=self.log, inverse_trainer=inverse, beside=self.cfg.workers > 1)
+            train_model(model, seed=self.cfg.seed, log=self.log, inverse_trainer=inverse, beside=self.cfg.workers > 1,
+                        fusion=self.cfg.fusion)
         return SkillModel(final)
 
     # -- 3. practice ------------------------------------------------------------------------------
@@ -152,7 +178,8 @@ class Job:
             limit = self.cfg.practice_max_trials if not sc.learn else self.cfg.practice_budget - used
             if limit <= 0:
                 continue
-            practice = sc.practice(model, folder, limit, self.cfg.seed + index)
+            graders = tuple(dict.fromkeys(name for name, _ in self.cfg.mentors)) if len(self.cfg.mentors) > 1 else ()
+            practice = sc.practice(model, folder, limit, self.cfg.seed + index, mentors=graders)
             cfg = practice.config
             with self._bar(cfg.max_trials, f"practice {sc.name}") as bar:
                 bar.update(practice.load_state().trial)
@@ -268,6 +295,9 @@ class Job:
             for r in s["revisions"]:
                 revisions.append({**r, "scenario": name})
         m = self.metrics
+        trust = model.fusion()
+        if trust is not None:
+            m["mentors"] = {"estimates": trust.table(), "history": trust.history}
         m.update(skill=self.task.SKILL, task=self.task.TASK, task_spec=self.task.spec or self.task.TASK, description=self.task.DESCRIPTION,
                  config=asdict(self.cfg), demos={"count": len(ds), "file": "demos.h5", "mentor_success_rate": rate(ok, len(ds)),
                                                  **{k: v for k, v in ds.summary().items() if k in ("samples", "samples_per_transition", "duration_s")}},
@@ -315,8 +345,8 @@ def _learning_summary(state: Any) -> dict[str, Any]:
 
 
 def train_model(model: SkillModel, seed: int = 0, log: Log = print,
-                inverse_trainer: Callable[..., dict[str, Any]] | None = None, beside: bool = False
-                ) -> dict[str, Any]:
+                inverse_trainer: Callable[..., dict[str, Any]] | None = None, beside: bool = False,
+                fusion: bool = True) -> dict[str, Any]:
     """Fit what a model directory lacks from its demonstrations: every law of the original
     definition (successful segments only), a judge per judged place (mentor labels, via the label
     store), the place regions, and (with ``inverse_trainer``) the auxiliary inverse model. Pieces
@@ -325,14 +355,25 @@ def train_model(model: SkillModel, seed: int = 0, log: Log = print,
     ``inverse_trainer(model, seed=, log=, laws_ready=)`` calls ``laws_ready()`` before it first uses
     the laws. With ``beside`` it runs in a forked process from the start: its babbling needs no law,
     so it uses the second core while this one fits the laws, judges and regions. Every fit is
-    seeded and single-threaded, so the model is the same either way."""
+    seeded and single-threaded, so the model is the same either way.
+
+    With demonstrations of several mentors and ``fusion``, how far each is trusted is estimated first
+    (:mod:`multiform.learn.fusion`, ``mentors.json``) and every fit weighs them by it; without
+    ``fusion`` their data are pooled as if one mentor made them all."""
     done = model.manifest.get("training", {})
     apn = model.history.version(0)
-    eps = model.episodes
     store = LabelStore(model.path / "labels.jsonl")
     if not len(store):
-        store.add_many(mentor_records(apn, eps))
+        store.add_many(mentor_records(apn, model.raw_episodes))
     summary: dict[str, Any] = dict(done)
+    if fusion and model.fusion() is None:
+        trust = estimate_fusion(apn, model.raw_episodes, seed=seed)
+        if trust is not None:
+            model.save_fusion(trust)
+            summary["mentors"] = trust.table()
+            model.update_manifest(training={"mentors": summary["mentors"]})
+            log_trust(trust, log)
+    eps = model.episodes
     need_inverse = inverse_trainer is not None and ("inverse_model" not in summary
                                                     or not (model.path / "inverse_model.npz").exists())
     other = _Beside(inverse_trainer, model, seed) if need_inverse and beside else None
@@ -358,7 +399,7 @@ def _fit_definition(model: SkillModel, apn: APN, eps: Sequence[Episode], store: 
         if name in laws and (model.path / "laws" / f"{name}.npz").exists():
             continue
         t0 = time.perf_counter()
-        law, info = fit_law(apn, eps, name, seed=seed)
+        law, info = fit_law(apn, eps, name, seed=seed, fusion=model.fusion())
         info["fit_seconds"] = round(time.perf_counter() - t0, 2)
         model.save_law(name, law)
         laws[name] = info
@@ -371,7 +412,7 @@ def _fit_definition(model: SkillModel, apn: APN, eps: Sequence[Episode], store: 
     for place in judged_places(apn):
         if place in judges and (model.path / "judges" / f"{place}.npz").exists():
             continue
-        judge, info = fit_judge(apn, eps, store, place, seed=seed)
+        judge, info = fit_judge(apn, eps, store, place, seed=seed, fusion=model.fusion())
         model.save_judge(place, judge)
         judges[place] = info
         model.update_manifest(training={"judges": judges})
@@ -388,6 +429,19 @@ def _fit_definition(model: SkillModel, apn: APN, eps: Sequence[Episode], store: 
         summary["regions"] = info
         log(f"  regions over {', '.join(info['variables'])}: " +
             ", ".join(f"{p} ({n} states)" for p, n in info["places"].items()))
+
+
+def log_trust(trust: Any, log: Log) -> None:
+    """One line per transition (each mentor's weight) and per judged place (each annotator's
+    agreement with the fused verdicts)."""
+    table = trust.table()
+    for t, d in table["maneuvers"].items():
+        log(f"  trust in {t}: " + ", ".join(f"{m} {v['weight']:.2f} ({v['successes']}/{v['segments']} ok, precision "
+                                            f"{'-' if v.get('precision') is None else format(v['precision'], '.2f')})"
+                                            for m, v in d.items()))
+    for p, d in table["labels"].items():
+        log(f"  labels in {p}: " + ", ".join(f"{w} agrees {100 * v['agreement']:.0f} % of {v['items']}"
+                                              for w, v in d.items()))
 
 
 class _Beside:

@@ -230,10 +230,10 @@ class Fusion:
 
     # -- practice -----------------------------------------------------------------------------------
     def observe_trial(self, apn: APN, demos: Sequence[Episode], trial: Episode,
-                      stay_success: Mapping[tuple[int, int], bool]) -> int:
-        """The robot's graded trial (its segments by transition, ``stay_success`` by stay ``(start,
-        end)``) as evidence on the mentors whose demonstrated states it followed; returns the segments
-        counted."""
+                      stay_success: Mapping[tuple[int, int], bool], demo_apn: APN | None = None) -> int:
+        """The robot's graded trial (run by ``apn``; its segments by transition, ``stay_success`` by
+        stay ``(start, end)``) as evidence on the mentors whose demonstrated states (``demos``, read
+        through ``demo_apn``, default ``apn``) it followed; returns the segments counted."""
         counted = 0
         for s, e, t in trial.segments():
             if t not in self.maneuvers:
@@ -241,7 +241,7 @@ class Fusion:
             ok = next((v for (a, b), v in stay_success.items() if a <= s < b), None)
             if ok is None:
                 continue
-            share = self._shares(apn, demos, t, trial, s, e)
+            share = self._shares(apn, demo_apn or apn, demos, t, trial, s, e)
             if not share:
                 continue
             counts = self.practice.setdefault(t, {})
@@ -251,10 +251,11 @@ class Fusion:
             counted += 1
         return counted
 
-    def _shares(self, apn: APN, demos: Sequence[Episode], t: str, trial: Episode, s: int, e: int) -> dict[str, float]:
+    def _shares(self, apn: APN, demo_apn: APN, demos: Sequence[Episode], t: str, trial: Episode, s: int, e: int
+                ) -> dict[str, float]:
         """Which mentors' demonstrated states of ``t`` the trial's segment ``[s, e)`` followed: the
         fraction of its (every 10th) states whose nearest demonstrated state each mentor made."""
-        ref = self._reference(apn, demos, t)
+        ref = self._reference(demo_apn, demos, t)
         if ref is None:
             return {}
         nn, mu, sd, who = ref
