@@ -298,9 +298,11 @@ class Job:
         trust = model.fusion()
         if trust is not None:
             m["mentors"] = {"estimates": trust.table(), "history": trust.history}
+        by_mentor = ds.summary()["mentors"]
         m.update(skill=self.task.SKILL, task=self.task.TASK, task_spec=self.task.spec or self.task.TASK, description=self.task.DESCRIPTION,
                  config=asdict(self.cfg), demos={"count": len(ds), "file": "demos.h5", "mentor_success_rate": rate(ok, len(ds)),
-                                                 **{k: v for k, v in ds.summary().items() if k in ("samples", "samples_per_transition", "duration_s")}},
+                                                 **{k: v for k, v in ds.summary().items() if k in ("samples", "samples_per_transition", "duration_s")},
+                                                 **({"mentors": by_mentor} if len(by_mentor) > 1 else {})},
                  training=model.manifest.get("training", {}),
                  practice_trials=sum(s["trials"] for s in scenarios.values()),
                  practice_robot_seconds=round(sum(s["robot_seconds"] for s in scenarios.values()), 1),

@@ -35,6 +35,7 @@ Everything is kept in ``MODEL/mentors.json`` with its evidence and a history of 
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -109,7 +110,11 @@ def dawid_skene(items: Sequence[Item]) -> tuple[dict[Key, float], dict[str, dict
             p = {t: float(df["label"].iloc[0]) for t in tasks.values()}
             errors = None
         else:
-            ds = DawidSkene(n_iter=200, tol=1e-7).fit(df)
+            with warnings.catch_warnings():        # crowd-kit 1.4's pandas calls that pandas 3 deprecates
+                warnings.simplefilter("ignore", DeprecationWarning)
+                warnings.simplefilter("ignore", FutureWarning)
+                warnings.filterwarnings("ignore", category=Warning, module="crowdkit")
+                ds = DawidSkene(n_iter=200, tol=1e-7).fit(df)
             p = {str(t): float(v) for t, v in ds.probas_[1].items()}
             errors = ds.errors_
         for it in mine:
