@@ -91,14 +91,10 @@ class PendulumMentor:
     * Switch and balance: ``switch_angle``, ``switch_rate``, ``catch_time`` (length of ``t1``),
       ``hold_time`` (balance wanted), ``give_up`` (longest swing-up), ``fall_angle`` (the pendulum
       has fallen), ``recover`` (how often per demo it swings a fallen pendulum up again).
-    * A person's habits (defaults: none): ``balance_scale`` (each balance gain times this: a sloppy
-      balance), ``balance_noise`` (motor noise while balancing; default ``motor_noise``),
-      ``hesitation`` (s: once it sees the moment to switch, it waits a time drawn from
-      [0, 2 ``hesitation``] before it does), ``switch_jitter`` (the switch angle it waits for is
-      ``switch_angle`` times a factor drawn from [1 - j, 1 + j] at every turn of the swing), and
-      ``label_flip`` (the probability that it labels a segment the wrong way round, and grades a
-      trial's stay so).
-    * ``name``: who it is, stored with its episodes and labels.
+    * Habits (none by default): ``balance_scale`` (balance gains times this), ``balance_noise``
+      (motor noise while balancing), ``hesitation`` (it switches a time drawn from [0, 2 h] after it
+      sees the moment), ``switch_jitter`` (the switch angle times a factor from [1 - j, 1 + j], drawn
+      at every turn), ``label_flip`` (chance of a label or grade the wrong way round). ``name``: who.
     """
 
     def __init__(self, delay: tuple[float, float] = (0.04, 0.08), rate: float = 100.0, resolution: float = 0.02,
@@ -274,13 +270,12 @@ class PendulumMentor:
 
     def _switch_now(self, k: int, th: float, om: float) -> bool:
         """Whether it switches now: at once when it sees the moment, or after its hesitation."""
-        if self.hesitation <= 0:
-            return self._should_switch(th, om)
         if self._seen_switch < 0:
             if not self._should_switch(th, om):
                 return False
-            self._seen_switch = k
-            self._wait = float(self.rng.uniform(0.0, 2.0 * self.hesitation))
+            if self.hesitation <= 0:
+                return True
+            self._seen_switch, self._wait = k, float(self.rng.uniform(0.0, 2.0 * self.hesitation))
         if (k - self._seen_switch) * self.dt < self._wait:
             return False
         self._seen_switch = -1
@@ -361,9 +356,7 @@ class PendulumMentor:
 
     def _say(self, verdict: bool) -> bool:
         """The verdict it records: the wrong way round with probability ``label_flip``."""
-        if self.label_flip > 0 and self.rng.random() < self.label_flip:
-            return not verdict
-        return verdict
+        return (not verdict) if self.label_flip > 0 and self.rng.random() < self.label_flip else verdict
 
     def grade_trial(self, episode: Episode, swung_up: str = "P1", balanced: str = "P2") -> list[SegmentLabel]:
         """The person's verdict on each stay of a robot's trial, from the trial's trace alone.
@@ -374,20 +367,28 @@ class PendulumMentor:
         it); a balancing stay when the pendulum stayed within ``fall_angle`` for ``hold_time`` s.
         The same tolerances as :meth:`label`; no simulator state is read.
         """
-        th = episode.column("theta")
-        n, dt = episode.num_samples, episode.dt
-        second = int(round(1.0 / dt))
-        segments = episode.segments()
-        out = []
-        for i, (start, end, place) in enumerate(segments):
-            nxt = segments[i + 1] if i + 1 < len(segments) else None
-            if place == swung_up:
-                ok = (nxt is not None and nxt[2] == balanced and end + second <= n
-                      and bool(np.all(np.abs(th[end:end + second]) < self.fall_angle)))
-            elif place == balanced:
-                ok = (end - start) * dt >= self.hold_time - 1e-9 and bool(np.all(np.abs(th[start:end]) < self.fall_angle))
-            else:
-                continue
-            out.append(SegmentLabel(start, end, place, self._say(bool(ok)), self.name))
-        return out
+        return [SegmentLabel(s, e, place, self._say(ok), self.name)
+                for s, e, place, ok in stay_verdicts(episode, self.fall_angle, self.hold_time, swung_up, balanced)]
 
+
+
+def stay_verdicts(episode: Episode, fall_angle: float, hold_time: float, swung_up: str = "P1",
+                  balanced: str = "P2") -> list[tuple[int, int, str, bool]]:
+    """(start, end, place, verdict) of each swung-up and balanced stay of a trial seen by place, as
+    :meth:`PendulumMentor.grade_trial` describes."""
+    th = episode.column("theta")
+    n, dt = episode.num_samples, episode.dt
+    second = int(round(1.0 / dt))
+    segments = episode.segments()
+    out = []
+    for i, (start, end, place) in enumerate(segments):
+        nxt = segments[i + 1] if i + 1 < len(segments) else None
+        if place == swung_up:
+            ok = (nxt is not None and nxt[2] == balanced and end + second <= n
+                  and bool(np.all(np.abs(th[end:end + second]) < fall_angle)))
+        elif place == balanced:
+            ok = (end - start) * dt >= hold_time - 1e-9 and bool(np.all(np.abs(th[start:end]) < fall_angle))
+        else:
+            continue
+        out.append((start, end, place, bool(ok)))
+    return out
