@@ -118,3 +118,31 @@ def test_labels_jsonl_names_each_labeller(tmp_path):
 def test_bad_mentor_names_are_refused(bad):
     with pytest.raises(InvalidInput):
         check_mentor_name(bad)
+
+
+def test_record_names_the_task_mentor_and_refuses_an_unknown_one(tmp_path, capsys):
+    out = tmp_path / "poor.h5"
+    assert main(["record", "pendulum", "--demos", "1", "--workers", "1", "--mentor", "poor", "--out", str(out)]) == 0
+    assert "1 demos by poor" in capsys.readouterr().out
+    ds = read_dataset(out)
+    assert ds.episodes[0].mentor == "poor" and {lab.labeller for lab in ds.episodes[0].labels} == {"poor"}
+    assert main(["record", "pendulum", "--demos", "1", "--mentor", "nobody", "--out", str(tmp_path / "n.h5")]) == 2
+    assert "no scripted mentor 'nobody'; its mentors: expert, average, poor" in capsys.readouterr().err
+    assert not (tmp_path / "n.h5").exists()
+
+
+@pytest.mark.parametrize("text, plan", [("expert:5,poor:10", (("expert", 5), ("poor", 10))),
+                                        ("expert,average,poor", (("expert", 0), ("average", 0), ("poor", 0)))])
+def test_the_main_jobs_mentors_option(text, plan):
+    from multiform.cli import build_parser
+    args = build_parser().parse_args(["demo", "pendulum", "--out", "x", "--mentors", text, "--no-fusion"])
+    assert args.mentors == plan and args.fusion is False
+
+
+def test_a_job_refuses_mentors_that_do_not_add_up_or_do_not_exist(tmp_path):
+    from multiform.job import Job, JobConfig
+    with pytest.raises(InvalidInput, match="do not add up"):
+        Job("pendulum", tmp_path / "a", JobConfig(demos=10, mentors=(("expert", 5), ("poor", 4))))
+    with pytest.raises(InvalidInput, match="no scripted mentor"):
+        Job("pendulum", tmp_path / "b", JobConfig(mentors=(("expert", 5), ("novice", 5))))
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
