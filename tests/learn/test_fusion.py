@@ -169,9 +169,11 @@ def test_thinning_keeps_about_the_weight_of_a_mentors_samples(several):
 def test_stay_items_read_what_happened_next():
     apn = load_skill("pendulum_strict")
     ep = _segment_episode(0.0, "t3", "ana", 0)
-    ep = replace(ep, transitions=np.array(["t0"] * 200 + ["t1"] * 200 + ["t2"] * 200),
+    ep = replace(ep, outcome="failure", transitions=np.array(["t0"] * 200 + ["t1"] * 200 + ["t2"] * 200),
                  labels=[SegmentLabel(0, 200, "t0", True, "ana"), SegmentLabel(200, 400, "t1", True, "ana"),
                          SegmentLabel(400, 600, "t2", False, "ana")])
-    items = {it.place: it for it in stay_items(apn, ep, "demo_0", {"P1", "P2"})}
-    assert items["P1"].key == ("demo_0", 0, 200) and items["P1"].outcome          # t1 took it on to P2
-    assert not items["P2"].outcome                                                 # it fell back (t2, not from P2)
+    items = {it.key: it for it in stay_items(apn, ep, "demo_0", {"P1", "P2"})}
+    assert sorted(items) == [("demo_0", 0, 200), ("demo_0", 200, 400), ("demo_0", 400, 600)]
+    assert items[("demo_0", 0, 200)].place == "P1" and items[("demo_0", 0, 200)].outcome   # t1 took it on to P2
+    assert items[("demo_0", 200, 400)].place == "P2" and not items[("demo_0", 200, 400)].outcome  # fell back: t2
+    assert not items[("demo_0", 400, 600)].outcome          # the demo ended there, and it was no success
