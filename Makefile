@@ -50,7 +50,7 @@ $(RUN_STAMP): pyproject.toml $(LOCK) scripts/system-deps.sh
 	touch $@
 
 $(STAMP): $(RUN_STAMP)
-	$(BIN)/python -m pip install -q -e '.[test,teleop,lerobot,interop,view,ray,video]' -c $(LOCK)
+	$(BIN)/python -m pip install -q -e '.[test,teleop,lerobot,interop,view,ray,video,mentors]' -c $(LOCK)
 	$(BIN)/python -m pip install -q --no-deps robomimic==0.3.0
 	touch $@
 

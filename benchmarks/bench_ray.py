@@ -39,7 +39,7 @@ task = load_task("pendulum")
 def small_model(root: Path) -> Path:
     from multiform.demos.dataset import write_dataset
     from multiform.teach.record import record_many
-    from multiform.job import train_model
+    from multiform.trainer import train_model
     from multiform.model import SkillModel
     eps = record_many("pendulum", [0, 1, 2, 9], task.DEMO_ENV_KWARGS, workers=2)
     demos = write_dataset(root / "demos.h5", eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)

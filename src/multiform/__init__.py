@@ -39,6 +39,7 @@ _EXPORTS = {
     "record": "multiform.api", "train": "multiform.api", "open_model": "multiform.api", "run_trial": "multiform.api",
     "practise": "multiform.api", "evaluate": "multiform.api", "mentor_rate": "multiform.api",
     "scenario_names": "multiform.api", "export_demos": "multiform.api", "import_demos": "multiform.api",
+    "merge_demos": "multiform.api",
     # what they return or run
     "SkillModel": "multiform.model", "Executor": "multiform.runtime.executor", "Trace": "multiform.runtime.trace",
     "Job": "multiform.job", "JobConfig": "multiform.job", "InvalidInput": "multiform.errors",

@@ -33,15 +33,18 @@ DEMO_SEED_STRIDE = 100_000                    # demo i of record(seed=s) starts 
 
 
 def record(task: TaskLike, out: str | os.PathLike, demos: int | None = None, seed: int = 0, workers: int = 2,
-           overwrite: bool = False, progress: Progress | None = None, ray: str | None = None) -> Path:
+           overwrite: bool = False, progress: Progress | None = None, ray: str | None = None,
+           mentor: str | None = None) -> Path:
     """Record ``demos`` demonstrations (default: the task's ``DEMOS``) of the task's scripted mentor
-    into the demos file ``out`` (HDF5, see docs/demonstrations.md) on ``workers`` processes (or as
-    Ray tasks at the cluster ``ray``); demo ``i`` starts from seed ``100000 * seed + i``. The
-    file's folder is made if missing. Returns the path."""
+    (``mentor``: one of the task's ``MENTORS`` by name; default: its default mentor) into the demos
+    file ``out`` (HDF5, see docs/demonstrations.md) on ``workers`` processes (or as Ray tasks at the
+    cluster ``ray``); demo ``i`` starts from seed ``100000 * seed + i``. Every demo and label names
+    its mentor. The file's folder is made if missing. Returns the path."""
     from .demos.dataset import write_dataset
     from .teach.record import record_many
     from .lock import check_writable, exclusive
     task = load_task(task)
+    mentor_kwargs = task.mentor_kwargs(mentor)            # an unknown mentor is refused before anything
     out = _new_output(out, overwrite, "file")
     if not out.parent.exists():
         out.parent.mkdir(parents=True)
@@ -49,18 +52,36 @@ def record(task: TaskLike, out: str | os.PathLike, demos: int | None = None, see
     n = task.DEMOS if demos is None else int(demos)
     with exclusive(out):
         eps = record_many(task.spec or task, [seed * DEMO_SEED_STRIDE + i for i in range(n)], task.DEMO_ENV_KWARGS,
-                          workers=workers, progress=progress, ray=ray)
+                          mentor_kwargs=mentor_kwargs, workers=workers, progress=progress, ray=ray)
         return write_dataset(out, eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)
+
+
+def merge_demos(demos: list[str | os.PathLike], out: str | os.PathLike, mentors: Mapping[str, str] | None = None,
+                overwrite: bool = False) -> Any:
+    """Merge the demos files of several people into one demos file ``out`` (each demo keeps its
+    mentor; one robomimic filter key per mentor, ``mask/mentor_<name>``). Files of different skills,
+    envs, variables, commands or control periods are refused, naming the file; ``mentors`` names the
+    mentor of a file whose demos record none (the file as given → the name). Returns the
+    :class:`~multiform.demos.dataset.Dataset` written."""
+    from .demos.dataset import merge_datasets, read_dataset
+    from .lock import exclusive
+    target = _new_output(out, overwrite, "file")
+    if any(Path(d).resolve() == target.resolve() for d in demos):
+        raise InvalidInput("is also one of the files to merge; write the merged file elsewhere", file=str(target))
+    with exclusive(target):
+        merge_datasets(demos, target, mentors)
+    return read_dataset(target)
 
 
 def train(skill: str | os.PathLike, demos: str | os.PathLike, out: str | os.PathLike, task: TaskLike | None = None,
           seed: int = 0, inverse_model: bool = False, overwrite: bool = False,
-          log: Callable[[str], None] = print) -> Any:
+          log: Callable[[str], None] = print, fusion: bool = True) -> Any:
     """Fit a skill model in the directory ``out`` from the skill file and the demos: a GP law per
     maneuver, an SVM judge per judged place, the place regions, and (``inverse_model``) the
     auxiliary inverse model of ``task`` (default: the bundled or installed task whose env recorded
-    the demos). The skill file's ``env:`` must be the demos' env. Returns the
-    :class:`~multiform.model.SkillModel`."""
+    the demos). The skill file's ``env:`` must be the demos' env. Demos of several mentors are
+    weighed by how far each is trusted (``MODEL/mentors.json``; docs/how-it-learns.md), or pooled
+    as one mentor's with ``fusion=False``. Returns the :class:`~multiform.model.SkillModel`."""
     from .demos.dataset import read_dataset
     from .trainer import train_model
     from .model import SkillModel, staged_model_dir
@@ -81,7 +102,7 @@ def train(skill: str | os.PathLike, demos: str | os.PathLike, out: str | os.Path
     with staged_model_dir(target) as partial:
         model = SkillModel.create(partial, skill, demos, ds.env_name, env_kwargs)
         log(f"training {model.apn.name} from {len(ds)} demos into {final}")
-        train_model(model, seed=seed, log=log, inverse_trainer=trainer, beside=True)
+        train_model(model, seed=seed, log=log, inverse_trainer=trainer, beside=True, fusion=fusion)
     if target != final:
         _swap_in(target, final)
     return SkillModel(final)
@@ -212,17 +233,21 @@ def export_demos(demos: str | os.PathLike, out: str | os.PathLike, fps: float | 
 def import_demos(dataset: str | os.PathLike, out: str | os.PathLike, variables: list[str] | None = None,
                  commands: list[str] | None = None, state_key: str = "observation.state", action_key: str = "action",
                  transition: str = "t0", skill: str | None = None, env: str | None = None,
-                 overwrite: bool = False) -> Any:
+                 overwrite: bool = False, mentor: str = "") -> Any:
     """Read a LeRobot v3 dataset folder and write it as a demos file ``out``; returns the
     :class:`~multiform.demos.dataset.Dataset` written. ``variables``/``commands`` name the entries of
-    the state and action vectors (default: the features' own names)."""
+    the state and action vectors (default: the features' own names). An episode's mentor is the
+    one multiform's export recorded, else ``mentor`` (default: none)."""
+    from .demos.episode import check_mentor_name
+    if mentor:
+        check_mentor_name(mentor, element="mentor (--mentor)")
     from .demos.dataset import read_dataset, write_dataset
     from .demos.lerobot import read_lerobot
     eps, meta = read_lerobot(dataset, variables, commands, state_key, action_key, transition)
     target = _new_output(out, overwrite, "file")
     env_args = meta.get("env_args", {}) if isinstance(meta.get("env_args"), dict) else {}
     write_dataset(target, eps, skill or str(meta.get("skill") or Path(dataset).name),
-                  env or str(env_args.get("env_name") or ""), env_args.get("env_kwargs") or {}, mentor="lerobot import")
+                  env or str(env_args.get("env_name") or ""), env_args.get("env_kwargs") or {}, mentor=mentor)
     return read_dataset(target)
 
 

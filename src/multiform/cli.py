@@ -199,11 +199,26 @@ def cmd_record(args: argparse.Namespace) -> int:
     n = task.DEMOS if args.demos is None else args.demos
     with _progress(f"recording {task.TASK} demos") as progress:
         out = api.record(task, args.out, demos=n, seed=args.seed, workers=args.workers, overwrite=args.overwrite,
-                         progress=progress, ray=args.ray)
+                         progress=progress, ray=args.ray, mentor=args.mentor)
     from .demos.dataset import read_dataset
     eps = read_dataset(out).episodes
     ok = sum(e.outcome == "success" for e in eps)
-    print(f"wrote {out}: {len(eps)} demos, the mentor succeeded in {ok} ({100 * ok / len(eps):.0f} %)")
+    print(f"wrote {out}: {len(eps)} demos by {eps[0].mentor or 'an unnamed mentor'}, who succeeded in {ok} "
+          f"({100 * ok / len(eps):.0f} %)")
+    return 0
+
+
+def cmd_demos_merge(args: argparse.Namespace) -> int:
+    names = {}
+    for item in args.mentor:
+        file, sep, name = item.rpartition("=")
+        if not sep or not file:
+            raise InvalidInput(f"must be FILE=NAME, got {item!r}", element="--mentor")
+        names[file] = name
+    ds = api.merge_demos(args.demos, args.out, names, overwrite=args.overwrite)
+    per = ds.summary()["mentors"]
+    print(f"wrote {args.out}: {len(ds)} demos of {ds.skill} by " +
+          ", ".join(f"{m} ({v['demos']})" for m, v in per.items()))
     return 0
 
 
@@ -220,7 +235,8 @@ def cmd_demos_export(args: argparse.Namespace) -> int:
 def cmd_demos_import(args: argparse.Namespace) -> int:
     split = lambda text: [n.strip() for n in text.split(",")] if text else None  # noqa: E731
     ds = api.import_demos(args.dataset, args.out, split(args.variables), split(args.commands), args.state_key,
-                          args.action_key, args.transition, skill=args.skill, env=args.env, overwrite=args.overwrite)
+                          args.action_key, args.transition, skill=args.skill, env=args.env, overwrite=args.overwrite,
+                          mentor=args.mentor)
     eps = ds.episodes
     ok = sum(ep.outcome == "success" for ep in eps)
     print(f"wrote {args.out}: {len(eps)} demos ({ok} successful), variables "
@@ -242,6 +258,8 @@ def cmd_demos_info(args: argparse.Namespace) -> int:
     print(f"duration: {d['total']:.1f} s in all, mean {d['mean']:.1f} s, min {d['min']:.1f} s, max {d['max']:.1f} s")
     print(f"samples: {s['samples']}; labelled segments: {s['segments']} ({s['segments_success']} success)")
     print("samples per transition: " + ", ".join(f"{k} {v}" for k, v in s["samples_per_transition"].items()))
+    print("mentors: " + ", ".join(f"{m} ({v['demos']} demos, {v['success']} successful)"
+                                  for m, v in s["mentors"].items()))
     return 0
 
 
@@ -250,8 +268,6 @@ _TELEOP_SCRIPT = None
 
 
 def cmd_teleop(args: argparse.Namespace) -> int:
-    import h5py
-
     from .demos.dataset import read_dataset, write_dataset
     from .envs.arm_pendulum import ArmPendulumEnv
     from .task import load_task
@@ -269,7 +285,9 @@ def cmd_teleop(args: argparse.Namespace) -> int:
     if _TELEOP_SCRIPT is None and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         raise InvalidInput("needs a display (no DISPLAY or WAYLAND_DISPLAY is set); run it on a desktop session",
                            element="teleop")
-    episodes, skill, env_kwargs, mentor = [], task.SKILL, dict(task.DEMO_ENV_KWARGS), args.labeller
+    from .demos.episode import check_mentor_name
+    check_mentor_name(args.labeller, element="--mentor")
+    episodes, skill, env_kwargs = [], task.SKILL, dict(task.DEMO_ENV_KWARGS)
     if out.exists() and args.append:
         ds = read_dataset(out)
         if ds.env_name != task.ENV_ID or ds.env_kwargs.get("action_mode", "ee") != "ee" \
@@ -277,8 +295,6 @@ def cmd_teleop(args: argparse.Namespace) -> int:
             raise InvalidInput(f"holds demonstrations of {ds.env_name} {ds.env_kwargs}; teleop records "
                                f"{task.ENV_ID} with end-effector commands", file=str(out), element="data")
         episodes, skill, env_kwargs = list(ds.episodes), ds.skill, ds.env_kwargs
-        with h5py.File(out, "r") as f:
-            mentor = str(f["data/demo_0"].attrs.get("mentor", "")) if "data/demo_0" in f else mentor
     try:
         import pygame
     except ImportError:
@@ -303,7 +319,8 @@ def cmd_teleop(args: argparse.Namespace) -> int:
         return 1
     from .lock import exclusive
     with exclusive(out):
-        write_dataset(out, episodes + [ep], skill, task.ENV_ID, env_kwargs, mentor=mentor)
+        ep.mentor = args.labeller
+        write_dataset(out, episodes + [ep], skill, task.ENV_ID, env_kwargs)
     labels = " ".join(f"{lab.transition}:{'s' if lab.success else 'f'}" for lab in ep.labels) or "none"
     print(f"wrote {out}: demo_{len(episodes)} ({ep.duration:.1f} s, seed {seed}, {len(ep.segments())} segment(s), "
           f"labels {labels}, outcome {ep.outcome or 'unlabelled'}); the file holds {len(episodes) + 1} demo(s)")
@@ -336,7 +353,7 @@ def cmd_label(args: argparse.Namespace) -> int:
 
 def cmd_train(args: argparse.Namespace) -> int:
     api.train(args.skill, args.demos, args.out, task=args.task, seed=args.seed, inverse_model=args.inverse_model,
-              overwrite=args.overwrite)
+              overwrite=args.overwrite, fusion=args.fusion)
     print(f"model ready: {args.out}")
     return 0
 
@@ -434,10 +451,16 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     from .job import Job, JobConfig
+    mentors = args.mentors
+    if mentors and not any(n for _, n in mentors):          # names only: --demos shared evenly, in order
+        from .task import load_task
+        total = args.demos or load_task(args.task).DEMOS
+        mentors = tuple((name, total // len(mentors) + (i < total % len(mentors))) for i, (name, _) in enumerate(mentors))
     cfg = JobConfig(demos=args.demos, eval_trials=args.eval_trials, ablation_trials=args.ablation_trials,
                     practice_max_trials=args.max_trials, workers=args.workers, seed=args.seed,
                     videos=not args.no_video, inverse_model=not args.reference_controller,
-                    learn=args.learn_from_practice, practice_budget=args.practice_budget, ray=args.ray)
+                    learn=args.learn_from_practice, practice_budget=args.practice_budget, ray=args.ray,
+                    mentors=mentors, fusion=args.fusion)
     m = Job(args.task, args.out, cfg, view=args.view).run()
     sr = m["success_rate"]
     print(f"success rate {100 * sr['rate']:.1f} % ({sr['successes']}/{sr['trials']}; 95 % CI "

@@ -230,6 +230,9 @@ def _add_demonstration_commands(sub: argparse._SubParsersAction, h: Handlers) ->
     _add_workers(p, _default(api.record, "workers"))
     p.add_argument("--seed", type=_count(0, 40_000), default=_default(api.record, "seed"),
                    help="demo i starts from seed 100000 * SEED + i")
+    p.add_argument("--mentor", default=None, metavar="NAME",
+                   help="which of the task's scripted mentors demonstrates (pendulum and nunchaku: expert, average, "
+                        "poor); its name is stored with every demo and label (default: the task's default mentor)")
     _add_ray(p)
     p.set_defaults(func=h["record"])
 
@@ -262,8 +265,21 @@ def _add_demonstration_commands(sub: argparse._SubParsersAction, h: Handlers) ->
     p.add_argument("--transition", default="t0", help="tag of every frame when there are no subtasks")
     p.add_argument("--skill", help="skill name to record (default: the dataset's)")
     p.add_argument("--env", help="env id to record (default: the dataset's)")
+    p.add_argument("--mentor", default="", metavar="NAME",
+                   help="who demonstrated the episodes that do not say (default: nobody named)")
     _add_overwrite(p, "--out")
     p.set_defaults(func=h["demos_import"])
+    p = dsub.add_parser("merge", help="merge several people's demonstration files into one (HDF5)",
+                        description="Every demo keeps its mentor and labels; the merged file has one robomimic "
+                                    "filter key per mentor (mask/mentor_NAME). Files of different skills, envs, "
+                                    "variables, commands or control periods are refused.")
+    p.add_argument("demos", nargs="+", help="demonstration files (.h5), in the order their demos are to appear")
+    p.add_argument("--out", "-o", required=True, help="output .h5 file")
+    p.add_argument("--mentor", action="append", default=[], metavar="FILE=NAME",
+                   help="the mentor of FILE's demos where the file records none, repeatable (default: none; such "
+                        "a file is refused)")
+    _add_overwrite(p, "--out")
+    p.set_defaults(func=h["demos_merge"])
 
 
 def _add_teaching_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
@@ -285,7 +301,8 @@ def _add_teaching_commands(sub: argparse._SubParsersAction, h: Handlers) -> None
     p.add_argument("--max-duration", type=float, default=60.0, help="seconds of simulated time at most")
     p.add_argument("--seed", type=_count(0, MAX_SEED), default=None,
                    help="start state (default: the number of demos in the file)")
-    p.add_argument("--labeller", default="human", help="your name, stored with your labels")
+    p.add_argument("--mentor", "--labeller", dest="labeller", default="human", metavar="NAME",
+                   help="your name, stored with your demonstration and your labels")
     p.set_defaults(func=h["teleop"])
 
     p = sub.add_parser("label", help="label segments of demos or recorded trials success/failure (s/f keys)",
@@ -295,7 +312,8 @@ def _add_teaching_commands(sub: argparse._SubParsersAction, h: Handlers) -> None
                                    "earlier labels are never lost, a later verdict supersedes for training.")
     p.add_argument("source", help="demonstration file (.h5), trial trace (.npz), or practice folder of traces")
     p.add_argument("--model", "-m", required=True, help="skill model directory")
-    p.add_argument("--labeller", default=None, help="your name (default: your login name)")
+    p.add_argument("--mentor", "--labeller", dest="labeller", default=None, metavar="NAME",
+                   help="your name, stored with every label (default: your login name)")
     p.add_argument("--script", default=None,
                    help="the keys to use instead of the terminal, e.g. sfsk (default: read keys from the terminal)")
     p.add_argument("--no-show", action="store_true", help="open no plot window")
@@ -318,6 +336,7 @@ def _add_model_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
     p.add_argument("--task", default=None, help=TASK_HELP + " (default: the one whose env recorded the demos)")
     p.add_argument("--seed", type=_count(0, MAX_SEED), default=_default(api.train, "seed"),
                    help="random state of every fit")
+    _add_fusion(p)
     p.set_defaults(func=h["train"])
 
     p = sub.add_parser("practice", help="practise a trained skill; repair the net on constant failure")
@@ -337,6 +356,31 @@ def _add_model_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
     _add_env_module(p)
     _add_view(p, "each trial (saved in the practice folder's view/)")
     p.set_defaults(func=h["practice"])
+
+
+def _add_fusion(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--fusion", action=argparse.BooleanOptionalAction, default=True,
+                   help="with demonstrations of several mentors, weigh each by how far it proves reliable, per "
+                        "maneuver and per place (MODEL/mentors.json); --no-fusion pools them as one mentor's")
+
+
+def _mentor_plan(text: str) -> tuple[tuple[str, int], ...]:
+    """``expert:5,poor:10`` (or ``expert,average,poor``: counts 0, spread by the job over --demos)."""
+    out = []
+    for part in text.split(","):
+        name, sep, count = part.strip().partition(":")
+        if not name:
+            raise argparse.ArgumentTypeError(f"a mentor needs a name, got {text!r}")
+        try:
+            n = int(count) if sep else 0
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a whole number of demos: {count!r}") from None
+        if sep and not 1 <= n <= 1000:
+            raise argparse.ArgumentTypeError(f"demos per mentor must be in 1..1000, got {n}")
+        out.append((name, n))
+    if any(n for _, n in out) and not all(n for _, n in out):
+        raise argparse.ArgumentTypeError(f"give every mentor a count or none, got {text!r}")
+    return tuple(out)
 
 
 def _add_env_module(p: argparse.ArgumentParser) -> None:
@@ -404,6 +448,11 @@ def _add_run_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
                    help="practice trials of all scenarios together at most")
     p.add_argument("--reference-controller", action="store_true",
                    help="drive the arm with the env's model-based controller instead of the learned inverse model")
+    p.add_argument("--mentors", type=_mentor_plan, default=(), metavar="NAME[:N],...",
+                   help="demonstrations by several of the task's scripted mentors, in order: expert:5,poor:10, or "
+                        "expert,average,poor to share --demos evenly; they also take turns grading practice trials "
+                        "(default: the task's default mentor alone)")
+    _add_fusion(p)
     _add_view(p, "the report's picked trials (saved in RUN/view/)")
     _add_ray(p)
     p.set_defaults(func=h["demo"])

@@ -28,7 +28,7 @@ from tqdm import tqdm
 from .evaluation import Evaluator, Variant
 from .demos.dataset import read_dataset, write_dataset
 from .demos.episode import Episode
-from .teach.record import demo_push, record_many
+from .teach.record import demo_push, record_by_mentors, record_many
 from .errors import InvalidInput
 from .io import write_json
 from .lock import exclusive
@@ -62,6 +62,9 @@ class JobConfig:
     inverse_model: bool = True
     ray: str | None = None           # record and evaluate as Ray tasks: "auto", "local" or a cluster address
     start_method: str | None = None  # of the local pool (default: fork on Linux)
+    mentors: tuple[tuple[str, int], ...] = ()   # the task's named mentors and how many demos each records, in
+                                     # order (their counts add up to ``demos``); (): the task's default mentor
+    fusion: bool = True              # with several mentors, weigh them by estimated trust; False: pool them
 
 
 class Job:
@@ -73,7 +76,13 @@ class Job:
         self.out = Path(out)
         self.cfg = config or JobConfig()
         if self.cfg.demos is None:
-            self.cfg = replace(self.cfg, demos=int(self.task.DEMOS))
+            self.cfg = replace(self.cfg, demos=int(sum(n for _, n in self.cfg.mentors) or self.task.DEMOS))
+        if self.cfg.mentors:
+            for name, _ in self.cfg.mentors:
+                self.task.mentor_kwargs(name)             # an unknown mentor is refused before anything runs
+            if sum(n for _, n in self.cfg.mentors) != self.cfg.demos:
+                raise InvalidInput(f"the mentors' demonstrations {[n for _, n in self.cfg.mentors]} do not add up to "
+                                   f"{self.cfg.demos}", element="mentors")
         self.log = log
         self.progress = progress
         self.view = view            # None, or where the picked trials stream (see multiform.view.stream.viewer_url)
@@ -107,24 +116,39 @@ class Job:
                 old = read_dataset(path).episodes
             except InvalidInput:
                 old = []
-            if len(old) == len(seeds) and all(self._recorded_as_planned(e, s) for e, s in zip(old, seeds)):
+            if len(old) == len(seeds) and all(self._recorded_as_planned(e, s, m)
+                                              for e, s, m in zip(old, seeds, self._planned_mentors())):
                 self.log(f"  reusing {path}")
                 return path
         with self._bar(len(seeds), "recording demos", unit="demo") as bar:
-            eps = record_many(self._worker_task, seeds, self.task.DEMO_ENV_KWARGS, workers=self.cfg.workers,
-                              progress=lambda i, n: bar.update(1), start_method=self.cfg.start_method,
-                              ray=self.cfg.ray)
-        write_dataset(path, eps, self.task.SKILL, self.task.ENV_ID, self.task.DEMO_ENV_KWARGS,
-                      mentor=getattr(eps[0], "mentor", "") if eps else "")
-        ok = sum(e.outcome == "success" for e in eps)
-        self.log(f"  {len(eps)} demos, mentor succeeded in {ok} ({100 * ok / len(eps):.0f} %)")
+            if self.cfg.mentors:
+                eps = record_by_mentors(self._worker_task, seeds, self.cfg.mentors, self.task.DEMO_ENV_KWARGS,
+                                        workers=self.cfg.workers, progress=lambda i, n: bar.update(1),
+                                        start_method=self.cfg.start_method, ray=self.cfg.ray)
+            else:
+                eps = record_many(self._worker_task, seeds, self.task.DEMO_ENV_KWARGS, workers=self.cfg.workers,
+                                  progress=lambda i, n: bar.update(1), start_method=self.cfg.start_method,
+                                  ray=self.cfg.ray)
+        write_dataset(path, eps, self.task.SKILL, self.task.ENV_ID, self.task.DEMO_ENV_KWARGS)
+        for who in dict.fromkeys(e.mentor for e in eps):
+            mine = [e for e in eps if e.mentor == who]
+            ok = sum(e.outcome == "success" for e in mine)
+            self.log(f"  {len(mine)} demos by {who or 'the mentor'}, who succeeded in {ok} ({100 * ok / len(mine):.0f} %)")
         return path
 
-    def _recorded_as_planned(self, episode: Episode, seed: int) -> bool:
+    def _planned_mentors(self) -> list[str | None]:
+        """The name of the mentor each demo is to be recorded by (None: the task's default)."""
+        if not self.cfg.mentors:
+            return [None] * int(self.cfg.demos or 0)
+        return [name for name, n in self.cfg.mentors for _ in range(n)]
+
+    def _recorded_as_planned(self, episode: Episode, seed: int, mentor: str | None = None) -> bool:
         options = dict(episode.reset_options)
         pulses = options.pop("disturbances", None)
+        who = self.task.mentor_kwargs(mentor).get("name") if mentor is not None else None
         return (episode.seed == seed and options == self.task.demo_options(seed)
-                and (pulses is not None) == (demo_push(self.task, seed) is not None))
+                and (pulses is not None) == (demo_push(self.task, seed) is not None)
+                and (who is None or episode.mentor == who))
 
     # -- 2. training ------------------------------------------------------------------------------
     def train(self, demos: Path) -> SkillModel:
@@ -138,7 +162,8 @@ class Job:
             model = SkillModel.create(partial, self.task.SKILL, demos, self.task.ENV_ID,
                                       self.task.robot_env_kwargs(use_inverse))
             inverse = self.task.train_inverse_model if use_inverse else None
-            train_model(model, seed=self.cfg.seed, log=self.log, inverse_trainer=inverse, beside=self.cfg.workers > 1)
+            train_model(model, seed=self.cfg.seed, log=self.log, inverse_trainer=inverse, beside=self.cfg.workers > 1,
+                        fusion=self.cfg.fusion)
         return SkillModel(final)
 
     # -- 3. practice ------------------------------------------------------------------------------
@@ -152,7 +177,8 @@ class Job:
             limit = self.cfg.practice_max_trials if not sc.learn else self.cfg.practice_budget - used
             if limit <= 0:
                 continue
-            practice = sc.practice(model, folder, limit, self.cfg.seed + index)
+            graders = tuple(dict.fromkeys(name for name, _ in self.cfg.mentors)) if len(self.cfg.mentors) > 1 else ()
+            practice = sc.practice(model, folder, limit, self.cfg.seed + index, mentors=graders)
             cfg = practice.config
             with self._bar(cfg.max_trials, f"practice {sc.name}") as bar:
                 bar.update(practice.load_state().trial)
@@ -276,9 +302,14 @@ class Job:
             for r in s["revisions"]:
                 revisions.append({**r, "scenario": name})
         m = self.metrics
+        trust = model.fusion()
+        if trust is not None:
+            m["mentors"] = {"estimates": trust.table(), "history": trust.history}
+        by_mentor = ds.summary()["mentors"]
         m.update(skill=self.task.SKILL, task=self.task.TASK, task_spec=self.task.spec or self.task.TASK, description=self.task.DESCRIPTION,
                  config=asdict(self.cfg), demos={"count": len(ds), "file": "demos.h5", "mentor_success_rate": rate(ok, len(ds)),
-                                                 **{k: v for k, v in ds.summary().items() if k in ("samples", "samples_per_transition", "duration_s")}},
+                                                 **{k: v for k, v in ds.summary().items() if k in ("samples", "samples_per_transition", "duration_s")},
+                                                 **({"mentors": by_mentor} if len(by_mentor) > 1 else {})},
                  training=model.manifest.get("training", {}),
                  practice_trials=sum(s["trials"] for s in scenarios.values()),
                  practice_robot_seconds=round(sum(s["robot_seconds"] for s in scenarios.values()), 1),

@@ -14,6 +14,8 @@
       regions.npz            place regions
       inverse_model.npz      the auxiliary inverse model (optional)
       labels.jsonl           every label: the mentor's and later ones
+      mentors.json           with several mentors: how far each is trusted, per maneuver and place,
+                             with its evidence and how practice moved it
 
 Everything is ``.npz`` + JSON, loaded with ``allow_pickle=False``; a shared model directory can
 never run code: its env must be registered (a ``module:`` id is refused unless the caller names
@@ -44,6 +46,7 @@ from .errors import InvalidInput, MissingInput, Problem
 from .io import plain_data_problems, read_json, write_json
 from .lock import exclusive
 from .learn.condition import load_condition
+from .learn.fusion import FILE as FUSION_FILE, Fusion
 from .learn.gp import GPLaw
 from .learn.judge import Judge, TrialGrade, credit_handovers, grade_episode
 from .learn.labels import LabelStore
@@ -234,11 +237,42 @@ class SkillModel:
 
     # -- demonstrations ---------------------------------------------------------------------------
     @cached_property
-    def episodes(self) -> list[Episode]:
+    def raw_episodes(self) -> list[Episode]:
+        """The demonstrations with their labels as the mentors gave them."""
         demos = self.manifest.get("demos")
         if not demos:
             raise InvalidInput("the model has no demonstration file", file=str(self.path / "model.json"))
         return list(read_dataset(demos))
+
+    @property
+    def episodes(self) -> list[Episode]:
+        """The demonstrations the learners read: as recorded with one mentor; with several, each stay
+        the fused verdicts overrule relabelled (:meth:`~multiform.learn.fusion.Fusion.fused`)."""
+        fusion = self.fusion()
+        if fusion is None:
+            return self.raw_episodes
+        key = (id(fusion), len(fusion.items))
+        if getattr(self, "_fused_key", None) != key:
+            self._fused = fusion.fused(self.history.version(0), self.raw_episodes)
+            self._fused_key = key
+        return self._fused
+
+    # -- several mentors ----------------------------------------------------------------------------
+    def fusion(self) -> Fusion | None:
+        """How far each of several mentors is trusted (``mentors.json``); None with one mentor."""
+        p = self.path / FUSION_FILE
+        if not p.exists():
+            return None
+        stamp = p.stat().st_mtime_ns
+        if getattr(self, "_fusion_stamp", None) != stamp:
+            self._fusion_cache = Fusion.load(p)
+            self._fusion_stamp = stamp
+        return self._fusion_cache
+
+    def save_fusion(self, fusion: Fusion) -> None:
+        """Write ``mentors.json`` (atomically) and note its estimates in the manifest."""
+        fusion.save(self.path / FUSION_FILE)
+        self._fusion_cache, self._fusion_stamp = fusion, (self.path / FUSION_FILE).stat().st_mtime_ns
 
     # -- learned pieces ---------------------------------------------------------------------------
     def save_law(self, name: str, law: GPLaw) -> None:

@@ -24,7 +24,7 @@ from __future__ import annotations
 import importlib
 import math
 import sys
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import ModuleType
@@ -68,12 +68,15 @@ class Scenario:
         return PracticeConfig(**({} if self.learn else REPAIR_ONLY), **self.config, max_trials=max_trials, seed=seed)
 
     def practice(self, model: Any, folder: str | Path, max_trials: int, seed: int = 0,
-                 observe: Callable[[int, Any], Any] | None = None) -> Any:
+                 observe: Callable[[int, Any], Any] | None = None, mentors: Sequence[str] = ()) -> Any:
         """A :class:`~multiform.adapt.practice.Practice` of ``model`` in ``folder`` through this
-        scenario (``seed``: the job seed plus the scenario's place in its task's list)."""
+        scenario (``seed``: the job seed plus the scenario's place in its task's list); ``mentors``
+        (the task's named mentors) take turns at grading trials, else its default mentor does."""
         from .adapt.practice import Practice
         cfg = self.practice_config(max_trials, seed)
-        mentor = self.mentor() if self.learn and self.mentor is not None else None
+        mentor = None
+        if self.learn and self.mentor is not None:
+            mentor = self.mentor(mentors) if mentors else self.mentor()
         takeover = self.takeover() if self.learn and self.takeover is not None and cfg.budgets(True)[1] else None
         return Practice(model, folder, cfg, options=self.options, perturb=self.perturb, name=self.name,
                         mentor=mentor, observe=observe, takeover=takeover, push=self.push)
@@ -105,6 +108,7 @@ class Task:
     REPORT: dict[str, str] = {}                 # the report's words for its pictures
     ABLATIONS_AFTER_PRACTICE: bool = True       # baselines need the practised model (False: run beside practice)
     train_inverse_model: Any = None             # (model, seed=, log=, laws_ready=) -> info; None: direct commands
+    MENTORS: dict[str, dict[str, Any]] = {}     # named scripted mentors: name -> make_mentor arguments
 
     spec: str = ""                              # how load_task found it (set by load_task)
 
@@ -128,21 +132,42 @@ class Task:
         its verdict on each stay of a practice trial (:meth:`mentor_grader`)."""
         raise InvalidInput(f"task {self.TASK} has no scripted mentor; record demonstrations yourself", element="task")
 
+    def mentor_kwargs(self, name: str | None = None) -> dict[str, Any]:
+        """:meth:`make_mentor`'s arguments for the task's scripted mentor ``name`` (one of
+        ``MENTORS``; None: the task's default mentor, no arguments)."""
+        if name is None:
+            return {}
+        if name not in self.MENTORS:
+            known = ", ".join(self.MENTORS) or "none besides its default"
+            raise InvalidInput(f"task {self.TASK} has no scripted mentor {name!r}; its mentors: {known}",
+                               element="mentor")
+        return dict(self.MENTORS[name])
+
     def demo_push(self, seed: int) -> dict[str, Any] | None:
         """The experimenter's push in demonstration ``seed`` (:class:`multiform.teach.record.PushDuring`
         arguments), or None: no push."""
         return None
 
-    def mentor_grader(self) -> Callable[[Any, Any], list] | None:
+    def mentor_grader(self, mentors: Sequence[str] = ()) -> Callable[[Any, Any], list] | None:
         """The scripted mentor watching a practice trial: one verdict per stay, from the trace alone
-        (its ``grade_trial``); None if the task has no scripted mentor that grades trials."""
+        (its ``grade_trial``); None if the task has no scripted mentor that grades trials. With
+        ``mentors`` (names of ``MENTORS``), they take turns: the first grades the first trial it is
+        asked to, the second the next, and so on."""
         try:
-            mentor = self.make_mentor()
+            graders = [self.make_mentor(**self.mentor_kwargs(m)) for m in mentors] or [self.make_mentor()]
         except InvalidInput:
+            if mentors:
+                raise
             return None
-        if not callable(getattr(mentor, "grade_trial", None)):
+        if not all(callable(getattr(g, "grade_trial", None)) for g in graders):
             return None
-        return lambda episode, apn: mentor.grade_trial(episode)
+        turn = [0]
+
+        def grade(episode: Any, apn: Any) -> list:
+            g = graders[turn[0] % len(graders)]
+            turn[0] += 1
+            return g.grade_trial(episode)
+        return grade
 
     def mentor_takeover(self) -> Callable[[Any, int], Any] | None:
         """The mentor taking over a failed practice trial (trace, tick -> a demonstration from there;

@@ -12,6 +12,7 @@ from typing import Any
 
 from .demos.episode import Episode
 from .errors import InvalidInput, Problem
+from .learn.fusion import estimate_fusion
 from .learn.labels import LabelStore
 from .learn.training import fit_judge, fit_law, fit_regions, judged_places, mentor_records
 from .model import SkillModel
@@ -21,8 +22,8 @@ Log = Callable[[str], None]
 
 
 def train_model(model: SkillModel, seed: int = 0, log: Log = print,
-                inverse_trainer: Callable[..., dict[str, Any]] | None = None, beside: bool = False
-                ) -> dict[str, Any]:
+                inverse_trainer: Callable[..., dict[str, Any]] | None = None, beside: bool = False,
+                fusion: bool = True) -> dict[str, Any]:
     """Fit what a model directory lacks from its demonstrations: every law of the original
     definition (successful segments only), a judge per judged place (mentor labels, via the label
     store), the place regions, and (with ``inverse_trainer``) the auxiliary inverse model. Pieces
@@ -31,14 +32,25 @@ def train_model(model: SkillModel, seed: int = 0, log: Log = print,
     ``inverse_trainer(model, seed=, log=, laws_ready=)`` calls ``laws_ready()`` before it first uses
     the laws. With ``beside`` it runs in a forked process from the start: its babbling needs no law,
     so it uses the second core while this one fits the laws, judges and regions. Every fit is
-    seeded and single-threaded, so the model is the same either way."""
+    seeded and single-threaded, so the model is the same either way.
+
+    With demonstrations of several mentors and ``fusion``, how far each is trusted is estimated first
+    (:mod:`multiform.learn.fusion`, ``mentors.json``) and every fit weighs them by it; without
+    ``fusion`` their data are pooled as if one mentor made them all."""
     done = model.manifest.get("training", {})
     apn = model.history.version(0)
-    eps = model.episodes
     store = LabelStore(model.path / "labels.jsonl")
     if not len(store):
-        store.add_many(mentor_records(apn, eps))
+        store.add_many(mentor_records(apn, model.raw_episodes))
     summary: dict[str, Any] = dict(done)
+    if fusion and model.fusion() is None:
+        trust = estimate_fusion(apn, model.raw_episodes, seed=seed)
+        if trust is not None:
+            model.save_fusion(trust)
+            summary["mentors"] = trust.table()
+            model.update_manifest(training={"mentors": summary["mentors"]})
+            log_trust(trust, log)
+    eps = model.episodes
     need_inverse = inverse_trainer is not None and ("inverse_model" not in summary
                                                     or not (model.path / "inverse_model.npz").exists())
     other = Beside(inverse_trainer, model, seed) if need_inverse and beside else None
@@ -65,7 +77,7 @@ def _fit_definition(model: SkillModel, apn: APN, eps: Sequence[Episode], store: 
             continue
         t0 = time.perf_counter()
         with _from_demonstrations(model, f"laws.{name}"):
-            law, info = fit_law(apn, eps, name, seed=seed)
+            law, info = fit_law(apn, eps, name, seed=seed, fusion=model.fusion())
         info["fit_seconds"] = round(time.perf_counter() - t0, 2)
         model.save_law(name, law)
         laws[name] = info
@@ -79,7 +91,7 @@ def _fit_definition(model: SkillModel, apn: APN, eps: Sequence[Episode], store: 
         if place in judges and (model.path / "judges" / f"{place}.npz").exists():
             continue
         with _from_demonstrations(model, f"places.{place}.judge"):
-            judge, info = fit_judge(apn, eps, store, place, seed=seed)
+            judge, info = fit_judge(apn, eps, store, place, seed=seed, fusion=model.fusion())
         model.save_judge(place, judge)
         judges[place] = info
         model.update_manifest(training={"judges": judges})
@@ -113,6 +125,19 @@ def _from_demonstrations(model: SkillModel, element: str) -> Iterator[None]:
     except ValueError as exc:
         raise InvalidInput(f"the demonstrations cannot train this: {exc}", file=str(model.manifest.get("demos") or ""),
                            element=element) from None
+
+
+def log_trust(trust: Any, log: Log) -> None:
+    """One line per transition (each mentor's weight) and per judged place (each annotator's
+    agreement with the fused verdicts)."""
+    table = trust.table()
+    for t, d in table["maneuvers"].items():
+        log(f"  trust in {t}: " + ", ".join(f"{m} {v['weight']:.2f} ({v['successes']}/{v['segments']} ok, precision "
+                                            f"{'-' if v.get('precision') is None else format(v['precision'], '.2f')})"
+                                            for m, v in d.items()))
+    for p, d in table["labels"].items():
+        log(f"  labels in {p}: " + ", ".join(f"{w} agrees {100 * v['agreement']:.0f} % of {v['items']}"
+                                              for w, v in d.items()))
 
 
 class Beside:

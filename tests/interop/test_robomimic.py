@@ -132,3 +132,23 @@ def test_robomimics_own_loaders_read_the_main_jobs_demos_and_the_env_reproduces_
     env_args, seed, options, actions, next_obs = _stored(demos, got["first"])
     assert np.array_equal(arrays["actions"], actions[:3000])
     _replays(got["env_meta"], seed, options, arrays["actions"], arrays["next_obs"], 3000)
+
+
+def test_sequence_dataset_reads_one_mentors_demos_of_a_merged_file(recorded, tmp_path):
+    """robomimic's multi-human convention: a filter key per mentor; SequenceDataset with
+    ``filter_by_attribute`` reads only that mentor's demos of a merged file."""
+    import robomimic.utils.obs_utils as obs_utils
+    from robomimic.utils.dataset import SequenceDataset
+    other = tmp_path / "other.h5"
+    task = load_task("pendulum")
+    eps = record_many("pendulum", [7], task.DEMO_ENV_KWARGS)
+    eps[0].mentor = "ana"
+    write_dataset(other, eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)
+    merged = api.merge_demos([recorded, other], tmp_path / "merged.h5")
+    assert [ep.mentor for ep in merged] == ["scripted-pendulum", "scripted-pendulum", "ana"]
+    obs_utils.initialize_obs_utils_with_obs_specs({"obs": {"low_dim": KEYS}})
+    for key, demos in (("mentor_ana", [2]), ("mentor_scripted-pendulum", [0, 1])):
+        ds = SequenceDataset(hdf5_path=str(merged.path), obs_keys=KEYS, dataset_keys=["actions"],
+                             filter_by_attribute=key)
+        assert ds.demos == [f"demo_{i}" for i in demos]
+        assert len(ds) == sum(merged.episodes[i].num_samples for i in demos)

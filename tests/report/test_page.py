@@ -145,3 +145,26 @@ def test_headless_chromium_shows_every_item(tmp_path):
     for item in ("pushed trials 97.0 %", "trials not pushed", "the robot's own verdict", "Configuration",
                  "Demonstrations", "cf. the paper's Fig. 7", "Fired in order: t0 t2 t1 t3 t7 t1 t6"):
         assert item in text, item
+
+
+def test_several_mentors_get_a_table_per_maneuver_and_place_and_how_practice_moved_it():
+    m = pendulum_metrics()
+    m["demos"]["mentors"] = {"expert": {"demos": 5, "success": 4}, "poor": {"demos": 5, "success": 1}}
+    m["mentors"] = {
+        "estimates": {"mentors": ["expert", "poor"], "items": 20, "verdicts_overruled": 4,
+                      "maneuvers": {"t3": {"expert": {"segments": 7, "successes": 5, "precision": 1.0, "success": 0.667,
+                                                      "weight": 1.0, "practice": [3.0, 0.5], "samples": 3000, "mse": 0.2},
+                                           "poor": {"segments": 9, "successes": 2, "precision": 0.28, "success": 0.27,
+                                                    "weight": 0.08, "practice": [0.0, 5.0], "samples": 900, "mse": None}}},
+                      "labels": {"P2": {"expert": {"items": 7, "agreement": 1.0, "sensitivity": 1.0, "specificity": 1.0},
+                                        "poor": {"items": 9, "agreement": 0.44, "sensitivity": None,
+                                                 "specificity": 0.5}}}},
+        "history": [{"when": "training", "maneuvers": {"t3": {"expert": 1.0, "poor": 0.12}}, "labels": {}},
+                    {"when": "trial 48", "maneuvers": {"t3": {"expert": 1.0, "poor": 0.08}}, "labels": {}}]}
+    page = page_html(m)
+    text = visible_text(page)
+    assert "Several mentors: how far each is trusted" in text and "5 by expert, 5 by poor" in text
+    assert "t3 poor 2/9 0.28 0.27 0.12 0.08 0.0 / 5.0" in text
+    assert "P2 poor 9 0.44 – 0.5" in text and "updated the estimates 1 time(s)" in text
+    assert "None" not in words(page) and not re.search(r"<p>\s*</p>", page)
+    assert "Several mentors" not in visible_text(page_html(pendulum_metrics()))

@@ -14,7 +14,7 @@ from ..errors import InvalidInput
 from ..learn.judge import Judge
 from ..learn.labels import now
 from ..learn.region import PlaceRegions
-from ..learn.training import demo_source, judged_places, label_balance, record_segments
+from ..learn.training import demo_source, fused_records, judged_places, label_balance, record_segments
 from ..learn.views import is_mirror, switch_data
 from ..model import SkillModel
 from ..petri.net import APN
@@ -51,9 +51,16 @@ class ModelLearners:
         from ..learn.training import switch_variables
         return switch_variables(apn, transition)
 
+    def switch_episodes(self, transition: str) -> list[Episode]:
+        """The demonstrations whose switches into ``transition`` a condition learns from: all of one
+        mentor's; of several, those of the mentors trusted in it (:meth:`~multiform.learn.fusion.Fusion.switch_episodes`)."""
+        fusion = self.model.fusion()
+        eps = self.model.episodes
+        return eps if fusion is None else fusion.switch_episodes(eps, transition)
+
     def has_switches(self, apn: APN, transition: str) -> bool:
         names = self.switch_variables(apn, transition)
-        d = switch_data(apn, self.model.episodes, transition, names)
+        d = switch_data(apn, self.switch_episodes(transition), transition, names)
         return len(d.switch_states) >= 3 and len(d.negatives) >= 10
 
     def mentor(self, apn: APN) -> Any:
@@ -74,7 +81,10 @@ class ModelLearners:
     def switch_condition(self, apn: APN, transition: str) -> tuple[str, dict[str, Any]]:
         from ..learn.training import fit_switch_condition
         names = self.switch_variables(apn, transition)
-        cond, info = fit_switch_condition(apn, self.model.episodes, transition, names, seed=self.seed)
+        eps = self.switch_episodes(transition)
+        cond, info = fit_switch_condition(apn, eps, transition, names, seed=self.seed)
+        if len(eps) < len(self.model.episodes):
+            info["mentors"] = sorted({ep.mentor for ep in eps})
         name = self._fresh(f"{transition}_switch")
         self.model.save_condition(name, cond)
         return name, {"model": name, **info}
@@ -163,7 +173,7 @@ def refit_judges(model: SkillModel, places: Sequence[str], episodes: Mapping[str
         variables = judged[place]
         cache: dict[str, np.ndarray] = {}
         segs, y, unknown, used = [], [], 0, 0
-        for r in store.effective(place=place):
+        for r in fused_records(store.effective(place=place), model.fusion()):
             ep = known.get(r.source)
             if ep is None or r.end > ep.num_samples:
                 unknown += 1

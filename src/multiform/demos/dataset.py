@@ -6,7 +6,8 @@ Layout (format version 3; robomimic's ``SequenceDataset`` and ``get_dataset_info
                                       observation_names (JSON), command_names (JSON), dt, total,
                                       transition_names (JSON: the tag codes' names),
                                       action_low, action_high (n_cmd,) when the actions are normalised
-    /data/demo_0               attrs: num_samples, seed, reset_options (JSON), outcome, mentor
+    /data/demo_0               attrs: num_samples, seed, reset_options (JSON), outcome, mentor (who
+                                      demonstrated it; "" if unknown)
         obs/<name>             (T, 1) float32 (float64 if so written), one dataset per observation entry
                                (identical entries are one dataset under two names)
         next_obs/<name>        (T, 1) the observation after each sample (the last one repeated): a
@@ -22,6 +23,9 @@ Layout (format version 3; robomimic's ``SequenceDataset`` and ``get_dataset_info
         labels                 (k,) compound: start, end, transition, success, labeller
     /mask/success, /mask/failure   demo names (bytes), by the demo's outcome
     /mask/train, /mask/valid       a seeded split (10 % valid, as robomimic's split_train_val.py)
+    /mask/mentor_<name>            demo names, one filter key per mentor (robomimic's multi-human
+                                   datasets keep one per operator); characters other than letters,
+                                   digits, ``_ . -`` in the name become ``_``
 
 Actions mean what they say, as robomimic's datasets do: in [-1, 1], for an env that takes them.
 When the env (registered with Gymnasium where the file is written) offers ``normalize_actions``, as
@@ -44,7 +48,9 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Iterable, Sequence
+import re
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -54,7 +60,7 @@ import numpy as np
 from ..errors import InvalidInput, MissingInput, Problem
 from ..io import (MAX_MAGNITUDE, check_regular_file, json_default, loads_json, memory_file,
                   plain_data_problems)
-from .episode import Episode, SegmentLabel
+from .episode import Episode, SegmentLabel, check_mentor_name, mentors_of
 
 FORMAT_VERSION = 3
 READABLE_VERSIONS = (1, 2, 3)
@@ -75,7 +81,8 @@ def write_dataset(path: str | os.PathLike, episodes: Sequence[Episode], skill: s
     observations are (rounding error at most 6e-8 of the value, far below what the laws can resolve;
     the file is about half the size: float64 physics data barely compresses); ``obs_dtype="float64"``
     keeps them exact. Commands are always exact. ``split_seed`` draws the ``mask/train`` /
-    ``mask/valid`` split. The actions are normalised when the env offers it (module docstring)."""
+    ``mask/valid`` split. The actions are normalised when the env offers it (module docstring).
+    Each demo's mentor is its episode's ``mentor``, else ``mentor``; every mentor gets a filter key."""
     if obs_dtype not in ("float64", "float32"):
         raise InvalidInput(f"obs_dtype must be float64 or float32, got {obs_dtype!r}", file=str(path))
     if not episodes:
@@ -106,11 +113,13 @@ def write_dataset(path: str | os.PathLike, episodes: Sequence[Episode], skill: s
             if unit is not None:
                 data.attrs["action_low"], data.attrs["action_high"] = unit
             data.attrs["transition_names"] = json.dumps(tag_names)
-            names = {"success": [], "failure": []}
+            names: dict[str, list[str]] = {"success": [], "failure": []}
             for i, ep in enumerate(episodes):
-                _write_demo(data.create_group(f"demo_{i}"), ep, unit, code, code_dtype, np.dtype(obs_dtype), mentor)
+                _write_demo(data.create_group(f"demo_{i}"), ep, unit, code, code_dtype, np.dtype(obs_dtype),
+                            ep.mentor or mentor)
                 names["success" if ep.outcome == "success" else "failure"].append(f"demo_{i}")
             names.update(train_valid_split([f"demo_{i}" for i in range(len(episodes))], split_seed))
+            names.update(mentor_filter_keys([ep.mentor or mentor for ep in episodes], str(path)))
             mask = f.create_group("mask")
             for key, vals in names.items():
                 mask.create_dataset(key, data=np.asarray(vals, dtype="S32"))
@@ -127,6 +136,28 @@ def train_valid_split(demos: Sequence[str], seed: int = 0,
     valid = set(np.random.default_rng(seed).permutation(len(names))[:n_valid].tolist())
     return {"train": [d for i, d in enumerate(names) if i not in valid],
             "valid": [d for i, d in enumerate(names) if i in valid]}
+
+
+def mentor_key(mentor: str) -> str:
+    """The filter key (``mask/<key>``) of a mentor's demos: ``mentor_`` and the name, characters other
+    than letters, digits, ``_ . -`` replaced by ``_``."""
+    return "mentor_" + re.sub(r"[^A-Za-z0-9_.-]", "_", mentor)
+
+
+def mentor_filter_keys(mentors: Sequence[str], file: str = "") -> dict[str, list[str]]:
+    """One filter key per named mentor: the names of the demos (``demo_<i>``, ``i`` the index in
+    ``mentors``) each mentor made; two names that share a key are refused."""
+    keys: dict[str, list[str]] = {}
+    owner: dict[str, str] = {}
+    for i, m in enumerate(mentors):
+        if not m:
+            continue
+        key = mentor_key(m)
+        if owner.setdefault(key, m) != m:
+            raise InvalidInput(f"mentors {owner[key]!r} and {m!r} would share the filter key mask/{key}; rename one",
+                               file=file, element=f"data/demo_{i}")
+        keys.setdefault(key, []).append(f"demo_{i}")
+    return keys
 
 
 def env_action_limits(env_name: str, env_kwargs: dict[str, Any], n_cmd: int
@@ -290,6 +321,9 @@ class Dataset:
             "samples": int(sum(ep.num_samples for ep in eps)),
             "samples_per_transition": dict(sorted(per_transition.items())),
             "segments": len(labels), "segments_success": sum(lab.success for lab in labels),
+            "mentors": {m or "(unnamed)": {"demos": sum(ep.mentor == m for ep in eps),
+                                           "success": sum(ep.mentor == m and ep.outcome == "success" for ep in eps)}
+                        for m in mentors_of(eps)},
         }
 
 
@@ -503,9 +537,58 @@ def _read_demo(g: h5py.Group, name: str, obs_names: tuple[str, ...], cmd_names: 
     return Episode(obs=obs, actions=actions, transitions=tags,
                    observation_names=obs_names, command_names=cmd_names, dt=dt,
                    seed=int(seed), reset_options=reset_options, labels=labels,
-                   outcome=_str(g.attrs.get("outcome", "")))
+                   outcome=_str(g.attrs.get("outcome", "")), mentor=_str(g.attrs.get("mentor", "")))
 
 
 def read_dataset(path: str | os.PathLike) -> Dataset:
     """Open and validate a demonstration file."""
     return Dataset(path)
+
+
+def merge_datasets(paths: Sequence[str | os.PathLike], out: str | os.PathLike,
+                   mentors: Mapping[str, str] | None = None, split_seed: int = 0) -> Path:
+    """Write the demonstrations of several files (several people's) into one file ``out``, in the
+    order given, each demo keeping its mentor and labels (every mentor gets its filter key).
+
+    The files must hold the same skill, env (id and arguments), observation and command names and
+    control period: a file that differs from the first is refused, named with what differs.
+    ``mentors`` names the mentor of a file's demos that record none (file path as given → name); a
+    demo without a mentor is refused, as is a name given for a file whose demos have their own.
+    Nothing is written unless every file passes."""
+    if not paths:
+        raise InvalidInput("no demonstration files to merge", file=str(out))
+    mentors = dict(mentors or {})
+    unknown = sorted(set(mentors) - {str(p) for p in paths})
+    if unknown:
+        raise InvalidInput(f"names a mentor for {unknown[0]!r}, which is not among the files to merge",
+                           element="mentor")
+    sets = [read_dataset(p) for p in paths]
+    first = sets[0]
+    want = _merge_key(first)
+    episodes: list[Episode] = []
+    for p, ds in zip(paths, sets):
+        got = _merge_key(ds)
+        for what, a, b in zip(("skill", "env", "env arguments", "observation names", "command names",
+                               "control period dt"), want, got):
+            if a != b:
+                raise InvalidInput(f"its {what} {b!r} differ from {a!r} of {paths[0]}; only demonstrations of one "
+                                   f"skill on one env merge", file=str(p), element="data")
+        given = mentors.get(str(p))
+        if given is not None:
+            check_mentor_name(given, element=f"mentor {p}={given}")
+        for i, ep in enumerate(ds.episodes):
+            if ep.mentor and given is not None and ep.mentor != given:
+                raise InvalidInput(f"demo_{i} was recorded by {ep.mentor!r}; a file's recorded mentors are kept, "
+                                   f"not renamed to {given!r}", file=str(p), element=f"data/demo_{i}")
+            who = ep.mentor or given
+            if not who:
+                raise InvalidInput(f"demo_{i} records no mentor; name the file's mentor (mentor {p}=NAME)",
+                                   file=str(p), element=f"data/demo_{i}")
+            episodes.append(replace(ep, mentor=who))
+    return write_dataset(out, episodes, first.skill, first.env_name, first.env_kwargs, obs_dtype=first.meta["obs_dtype"],
+                         split_seed=split_seed)
+
+
+def _merge_key(ds: Dataset) -> tuple[Any, ...]:
+    return (ds.skill, ds.env_name, ds.env_kwargs, tuple(ds.meta["observation_names"]),
+            tuple(ds.meta["command_names"]), float(ds.meta["dt"]))

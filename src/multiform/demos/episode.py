@@ -10,6 +10,8 @@ per-segment labels.
 
 from __future__ import annotations
 
+import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -29,7 +31,8 @@ class SegmentLabel:
 
 @dataclass
 class Episode:
-    """Arrays of one recorded episode; ``T`` samples at the control rate."""
+    """Arrays of one recorded episode; ``T`` samples at the control rate. ``mentor`` names the person
+    (or scripted mentor) who demonstrated it; its labels name who labelled them (``labeller``)."""
 
     obs: np.ndarray                  # (T, n_obs) float64
     actions: np.ndarray              # (T, n_cmd) float64, the command applied at each sample
@@ -41,6 +44,7 @@ class Episode:
     reset_options: dict[str, Any] = field(default_factory=dict)
     labels: list[SegmentLabel] = field(default_factory=list)
     outcome: str = ""                # "success" / "failure" as the mentor saw it
+    mentor: str = ""                 # who demonstrated it ("" if not recorded)
 
     @property
     def num_samples(self) -> int:
@@ -96,3 +100,28 @@ class Mentor(Protocol):
 
     def label(self, episode: Episode) -> list[SegmentLabel]:
         """Label every segment of ``episode`` success or failure, from what the mentor observed."""
+
+
+MENTOR_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.@+ -]{0,63}")
+
+
+def check_mentor_name(name: str, element: str = "mentor") -> str:
+    """A mentor's name as stored with episodes and labels: 1-64 letters, digits, ``_ . @ + -`` or
+    spaces, starting with a letter or digit, and not the robot's own (``robot...``)."""
+    from ..errors import InvalidInput
+    if not isinstance(name, str) or not MENTOR_NAME.fullmatch(name) or name != name.strip():
+        raise InvalidInput(f"a mentor's name is 1-64 letters, digits, '_', '.', '@', '+', '-' or spaces, starting "
+                           f"with a letter or digit; got {name!r}", element=element)
+    if name.startswith("robot"):
+        raise InvalidInput(f"names starting with 'robot' are the robot's own grades; got {name!r}", element=element)
+    return name
+
+
+def mentors_of(episodes: Sequence[Episode]) -> list[str]:
+    """The distinct mentors of ``episodes``, in order of first appearance (an episode without a
+    recorded mentor counts as the mentor ``""``)."""
+    out: list[str] = []
+    for ep in episodes:
+        if ep.mentor not in out:
+            out.append(ep.mentor)
+    return out

@@ -16,7 +16,8 @@ actions), ``subtask_index`` (the transition the mentor was executing, named in
 of a successful demo), ``segment.success`` (the mentor's label of the segment the frame lies in: 1
 success, 0 failure, -1 unlabelled; what LeRobot's reward classifier trains on), and LeRobot's
 ``timestamp``, ``frame_index``, ``episode_index``, ``index``, ``task_index``. Every episode row also
-carries its outcome, seed, reset options and labels (``multiform/...`` columns) and, as LeRobot's
+carries its outcome, mentor (who demonstrated it), seed, reset options and labels (``multiform/...``
+columns) and, as LeRobot's
 own writer adds them, the episode's statistics of every feature (``stats/<feature>/<min|max|mean|
 std|count|q01|q10|q50|q90|q99>``); ``meta/stats.json`` has the same over the whole dataset, and
 ``info.json`` a ``multiform`` block (skill, env). Values stay float64 so frames equal the source
@@ -199,7 +200,7 @@ def _write_frames(tmp: Path, out: Path, episodes: Sequence[Episode], features: d
             "data/chunk_index": file_index // CHUNKS_SIZE, "data/file_index": file_index % CHUNKS_SIZE,
             "dataset_from_index": index, "dataset_to_index": index + n,
             "meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0,
-            "multiform/outcome": ep.outcome, "multiform/seed": int(ep.seed),
+            "multiform/outcome": ep.outcome, "multiform/mentor": ep.mentor, "multiform/seed": int(ep.seed),
             "multiform/reset_options": json.dumps(ep.reset_options, default=json_default),
             "multiform/labels": json.dumps([[lab.start // step, -(-lab.end // step), lab.transition,
                                              bool(lab.success), lab.labeller] for lab in ep.labels]),
@@ -380,6 +381,7 @@ def _episode(root: Path, e: int, sel: np.ndarray, cat: dict[str, np.ndarray], st
                  seed=int(meta.get("multiform/seed", e) or 0))
     if meta.get("multiform/outcome") is not None:
         ep.outcome = str(meta["multiform/outcome"])
+        ep.mentor = str(meta.get("multiform/mentor") or "")
         ep.reset_options = _loads(meta.get("multiform/reset_options"), {}, root, where)
         try:
             ep.labels = [SegmentLabel(int(s), int(t), str(tr), bool(ok), str(who))

@@ -24,6 +24,7 @@ from ..demos.episode import Episode
 from ..errors import InvalidInput
 from ..petri.net import APN
 from .features import Segment
+from .fusion import Fusion
 from .gp import GPLaw
 from .judge import Judge
 from .labels import LabelRecord, LabelStore, records_from_episode
@@ -79,7 +80,7 @@ class LawSettings:
 def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool = True,
             heldout: float = 0.2, seed: int = 0, settings: LawSettings | None = None,
             own: Sequence[Episode] = (), own_apn: APN | None = None, current: GPLaw | None = None,
-            mentor_law: GPLaw | None = None) -> tuple[GPLaw, dict[str, Any]]:
+            mentor_law: GPLaw | None = None, fusion: Fusion | None = None) -> tuple[GPLaw, dict[str, Any]]:
     """Fit one law; returns the law (refit on all its data) and a summary with held-out NRMSE.
 
     ``own`` are the robot's own practice episodes whose labels mark the segments it graded
@@ -89,10 +90,13 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
     episodes of both kinds; with ``current``, that law's error on the same held-out samples is
     reported beside it (``heldout_nrmse_current``), so a refit shows before and after. With
     ``mentor_law`` (the law fitted on the mentor's data alone) and ``settings.own_novelty`` > 0, only
-    the own samples where that law is unsure join (:func:`novel_samples`).
+    the own samples where that law is unsure join (:func:`novel_samples`). With ``fusion`` (several
+    mentors, :mod:`.fusion`), each mentor's samples of a transition are kept with its weight there.
     """
     s = settings or LawSettings()
-    data, n_mentor, n_offered = _law_samples(apn, episodes, law, success_only, seed, s, own, own_apn, mentor_law)
+    masks = fusion.sample_masks(episodes, seed) if fusion is not None else None
+    data, n_mentor, n_offered = _law_samples(apn, episodes, law, success_only, seed, s, own, own_apn, mentor_law,
+                                             masks)
     if len(data.X) < 20:
         raise ValueError(f"law {law}: only {len(data.X)} samples from {'successful ' if success_only else ''}"
                          f"segments; record more demonstrations")
@@ -117,6 +121,8 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
     demos = np.unique(data.episode)
     summary: dict[str, Any] = {"n": int(len(data.X)), "demos": int(np.sum(demos < len(episodes))),
                                "success_only": success_only}
+    if masks is not None:
+        summary["mentor_samples"] = _per_mentor(data.episode, episodes)
     if own:
         summary.update(n_mentor=int(n_mentor), n_own=int(len(data.X) - n_mentor), n_own_offered=int(n_offered),
                        own_ratio=s.own_ratio, own_novelty=s.own_novelty,
@@ -140,22 +146,34 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
     return law_model, summary
 
 
+def _per_mentor(episode_index: np.ndarray, episodes: Sequence[Episode]) -> dict[str, int]:
+    """Samples per mentor among a law's data (mirror images counted with their episode)."""
+    out: dict[str, int] = {}
+    for k, n in zip(*np.unique(episode_index, return_counts=True)):
+        if k < len(episodes):
+            out[episodes[k].mentor] = out.get(episodes[k].mentor, 0) + int(n)
+    return dict(sorted(out.items()))
+
+
 def _law_samples(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool, seed: int, s: LawSettings,
-                 own: Sequence[Episode], own_apn: APN | None, mentor_law: GPLaw | None) -> tuple[LawData, int, int]:
+                 own: Sequence[Episode], own_apn: APN | None, mentor_law: GPLaw | None,
+                 masks: Sequence[np.ndarray | None] | None = None) -> tuple[LawData, int, int]:
     """:func:`fit_law`'s samples: the mentor's (and their mirror images), then the robot's own that
     are novel enough, at most ``own_ratio`` times the mentor's. Returns them with the number of the
     mentor's and of the own samples offered; own episodes are numbered after the mentor's."""
     mirror = s.mirror and bool(apn.mirror)
 
-    def both(d: LawData, net: APN, eps: Sequence[Episode], lag: float | None, only: bool) -> LawData:
+    def both(d: LawData, net: APN, eps: Sequence[Episode], lag: float | None, only: bool,
+             keep: Sequence[np.ndarray | None] | None = None) -> LawData:
         """``d`` and, with ``mirror``, the same episodes' mirror images (sharing their episode index,
         so an image is held out with its episode)."""
         if not mirror:
             return d
-        m = law_data(net, [mirror_episode(net, ep) for ep in eps], law, success_only=only, lag=lag)
+        m = law_data(net, [mirror_episode(net, ep) for ep in eps], law, success_only=only, lag=lag, masks=keep)
         return LawData(np.concatenate([d.X, m.X]), np.concatenate([d.Y, m.Y]), np.concatenate([d.episode, m.episode]))
 
-    data = both(law_data(apn, episodes, law, success_only=success_only), apn, episodes, None, success_only)
+    data = both(law_data(apn, episodes, law, success_only=success_only, masks=masks), apn, episodes, None,
+                success_only, masks)
     n_mentor, n_offered = len(data.X), 0
     if own:
         net = own_apn or apn
@@ -233,6 +251,15 @@ def demo_segments(apn: APN, episodes: Sequence[Episode], records: Sequence[Label
     return segs, np.asarray(y, dtype=bool)
 
 
+def fused_records(records: Sequence[LabelRecord], fusion: Fusion | None) -> list[LabelRecord]:
+    """``records`` with each verdict the fused one where several mentors' trust was estimated
+    (:meth:`~.fusion.Fusion.verdict`); as they are otherwise."""
+    if fusion is None:
+        return list(records)
+    from dataclasses import replace
+    return [replace(r, success=fusion.verdict(r.key, r.success)) for r in records]
+
+
 # a judge learns to tell success from failure only from at least this many labels of each verdict
 MIN_LABELS_PER_VERDICT = 3
 
@@ -254,13 +281,14 @@ def label_balance(success: Sequence[bool] | np.ndarray) -> dict[str, Any]:
 
 
 def fit_judge(apn: APN, episodes: Sequence[Episode], store: LabelStore, place: str, seed: int = 0,
-              heldout: float = 0.25, mirror: bool = True) -> tuple[Judge, dict[str, Any]]:
+              heldout: float = 0.25, mirror: bool = True, fusion: Fusion | None = None) -> tuple[Judge, dict[str, Any]]:
     """Fit the judge of ``place`` on the store's effective mentor labels (and, if the skill declares a
     mirror symmetry and ``mirror`` is set, on their mirror images too); held-out accuracy on a split by
     demonstration, tested on the held-out demonstrations' own segments (a mirror image follows its
-    demonstration into the same side of the split)."""
+    demonstration into the same side of the split). With ``fusion`` (several mentors) a stay's label
+    is the fused verdict of all who labelled it (:func:`fused_records`)."""
     variables = judged_places(apn)[place]
-    records = [r for r in store.effective(place=place) if is_demonstration(r.source)]
+    records = fused_records([r for r in store.effective(place=place) if is_demonstration(r.source)], fusion)
     segs, y = demo_segments(apn, episodes, records, variables, mirror=mirror)
     mirrored = np.array([is_mirror(s.source) for s in segs], dtype=bool)
     summary: dict[str, Any] = {"segments": int((~mirrored).sum()), "success_labels": int(y[~mirrored].sum()),

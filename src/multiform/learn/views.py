@@ -115,13 +115,15 @@ class LawData:
 
 
 def law_data(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool = True,
-             lag: float | None = None) -> LawData:
+             lag: float | None = None, masks: Sequence[np.ndarray | None] | None = None) -> LawData:
     """The samples in which the mentor executed a transition run by ``law``.
 
     With ``success_only`` (the paper: "the robot only learns from the successful demonstration"),
     only samples inside segments the mentor labelled success are kept. ``lag`` [s] (default: the
     law's, from the skill file) pairs each state with the command the mentor gave that long after it
     (both inside the kept samples): a person's command answers what they saw a reaction time earlier.
+    ``masks`` (one per episode, None: all) keeps only the samples they mark (several mentors' data
+    weighed by thinning, :mod:`.fusion`).
     """
     spec = apn.laws[law]
     lag = spec.lag if lag is None else lag
@@ -134,6 +136,8 @@ def law_data(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool
         keep = np.isin(ep.transitions, list(tids))
         if success_only:
             keep &= success_mask(ep)
+        if masks is not None and masks[k] is not None:
+            keep &= masks[k]
         shift = int(round(lag / ep.dt))
         if shift:
             keep[len(keep) - shift:] = False

@@ -220,6 +220,7 @@ def page_html(m: dict[str, Any]) -> str:
     parts += _summary(m, revisions)
     parts += _configuration(m, revisions)
     parts += _demonstrations(m.get("demos"))
+    parts += _mentors(m.get("mentors"))
     parts += _revisions(m, revisions)
     parts += _nets(art.get("nets", []), revisions)
     parts += _scenarios(m.get("scenarios", {}))
@@ -311,7 +312,10 @@ def _demonstrations(d: Any) -> list[str]:
         return []
     parts = [Html("<h2>Demonstrations</h2>")]
     dur = d.get("duration_s", {})
-    text = [_h("{} demonstrations by the scripted mentor in {}", d["count"], _code(d.get("file", "demos.h5")))]
+    who = d.get("mentors")
+    by = (", ".join(f"{v['demos']} by {m}" for m, v in who.items()) if isinstance(who, dict) and len(who) > 1
+          else "by the scripted mentor")
+    text = [_h("{} demonstrations {} in {}", d["count"], by, _code(d.get("file", "demos.h5")))]
     if dur:
         text.append(f", {dur['total']:.0f} s in all (each {dur['min']:.1f}–{dur['max']:.1f} s)")
     if "samples" in d:
@@ -322,6 +326,45 @@ def _demonstrations(d: Any) -> list[str]:
     if d.get("samples_per_transition"):
         parts.append(_table([{"t": _code(t), "n": n} for t, n in d["samples_per_transition"].items()],
                             [("t", "transition the mentor tagged"), ("n", "samples")]))
+    return parts
+
+
+def _mentors(trust: Any) -> list[str]:
+    """With several mentors: how far each is trusted per maneuver and per place, with the evidence,
+    and how practice moved the weights (``mentors.json``, :mod:`multiform.learn.fusion`)."""
+    if not isinstance(trust, dict) or not isinstance(trust.get("estimates"), dict):
+        return []
+    est, history = trust["estimates"], trust.get("history") or []
+    last = history[-1]["maneuvers"] if history else {}
+    first = history[0]["maneuvers"] if history else {}
+    rows = []
+    for t, per in est.get("maneuvers", {}).items():
+        for who, d in per.items():
+            s, f = (d.get("practice") or [0, 0])[:2]
+            rows.append({"t": Html(_code(t)), "m": who, "seg": f"{d.get('successes')}/{d.get('segments')}",
+                         "prec": d.get("precision"), "ok": d.get("success"),
+                         "w0": first.get(t, {}).get(who), "w": d.get("weight"),
+                         "prac": f"{s:.1f} / {f:.1f}" if s or f else "–"})
+    parts = ["<h2>Several mentors: how far each is trusted</h2>",
+             _p(_e(f"{len(est.get('mentors', []))} mentors ({', '.join(est.get('mentors', []))}). Per maneuver, "
+                   "a mentor's weight is its estimated success (its segments the fused verdicts call successful, "
+                   "and the robot's graded practice where it followed that mentor) times the precision of its "
+                   "commands, relative to the best mentor; laws keep that share of its samples, switch conditions "
+                   "learn from mentors weighted at least 0.5. Per place, each annotator's agreement with the fused "
+                   "(Dawid–Skene) verdicts; 'outcome' is the net's own reading of what happened next.")),
+             _table(rows, [("t", "maneuver"), ("m", "mentor"), ("seg", "segments succeeded"), ("prec", "precision"),
+                           ("ok", "success estimate"), ("w0", "weight after training"), ("w", "weight now"),
+                           ("prac", "practice evidence (success / failure)")])]
+    labels = [{"p": Html(_code(p)), "w": w, "n": d.get("items"), "a": d.get("agreement"),
+               "se": d.get("sensitivity"), "sp": d.get("specificity")}
+              for p, per in est.get("labels", {}).items() for w, d in per.items()]
+    if labels:
+        parts.append(_table(labels, [("p", "place"), ("w", "annotator"), ("n", "stays labelled"),
+                                     ("a", "agreement with fused verdicts"), ("se", "sensitivity"),
+                                     ("sp", "specificity")]))
+    if len(history) > 1:
+        parts.append(_p(_e(f"Practice updated the estimates {len(history) - 1} time(s); the weights after training "
+                           "and now are side by side above.")))
     return parts
 
 

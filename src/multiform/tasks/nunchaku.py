@@ -45,6 +45,14 @@ class Nunchaku(Task):
         "motion_figure": "Fig. 11",
         "success_trial": "a successful flip: swing-up, release, the chain over the back of the hand, regrasp",
     }
+    MENTORS = {         # people of unequal skill (NunchakuMentor's arguments)
+        "expert": {"name": "expert", "noise": 0.5, "failure_rate": 0.1},   # steady hands, seldom a fumble
+        "average": {"name": "average"},                                     # the default mentor's skill
+        # pumps as well as anyone, but flicks and lets go late and unevenly, strokes and turns sloppily
+        # after the release, and labels carelessly (three labels in ten the wrong way round)
+        "poor": {"name": "poor", "flick_jitter": 0.12, "release_lag": 0.03, "stroke_jitter": 0.35,
+                 "label_flip": 0.3},
+    }
     PLOT_VARIABLES = [("phi", "φ est. [rad]"), ("omega", "ω est. [rad/s]"), ("hand_q", "wrist q [rad]"),
                       ("hand_x", "hand x [m]"), ("touch", "back touch [N]"), ("grip", "grip")]
 

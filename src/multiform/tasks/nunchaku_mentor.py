@@ -101,14 +101,23 @@ class NunchakuMentor:
     all human-like imprecision (0 = a perfectly repeatable robot, 1 = the default person).
     ``accel`` and ``wrist_accel`` bound how fast the mentor's hand can change velocity [m/s^2,
     rad/s^2] — the bundled skill's safety section uses the same numbers.
+
+    A person's habits (defaults: the default person's): ``stroke_jitter`` (relative spread of the
+    stroke and wrist turn after the release, per demo; a sloppy release at 0.15), ``flick_jitter``
+    (spread of the angle at which it flicks, rad), ``release_lag`` (s: it lets go a time drawn from
+    [0, 2 ``release_lag``] later than it sees the release point), ``label_flip`` (the probability
+    that it labels a segment, or grades a trial's stay, the wrong way round). ``name``: who it is.
     """
 
-    name = "nunchaku-scripted"
     FUMBLES = ("early_release", "late_release", "weak_flick", "wrong_turn", "late_rearm")
 
     def __init__(self, params: FlipParameters | None = None, failure_rate: float = 0.3, noise: float = 1.0,
                  accel: float = 40.0, wrist_accel: float = 400.0, hold_time: float = 0.5,
-                 max_swing_time: float = 8.0):
+                 max_swing_time: float = 8.0, name: str = "nunchaku-scripted", stroke_jitter: float = 0.04,
+                 flick_jitter: float = 0.04, release_lag: float = 0.0, label_flip: float = 0.0):
+        self.name = name
+        self.stroke_jitter, self.flick_jitter = float(stroke_jitter), float(flick_jitter)
+        self.release_lag, self.label_flip = float(release_lag), float(label_flip)
         self.params = params or FlipParameters()
         self.failure_rate = float(failure_rate)
         self.noise = float(noise)
@@ -123,14 +132,17 @@ class NunchakuMentor:
         """Draw this demonstration's imprecision and (maybe) its fumble."""
         n = self.noise
         p = self.params
-        jitter = {k: 1.0 + n * rng.normal(0.0, 0.04) for k in
+        stroke = ("stroke_x", "stroke_z", "turn")
+        jitter = {k: 1.0 + n * rng.normal(0.0, self.stroke_jitter if k in stroke else 0.04) for k in
                   ("flick_speed", "flick_wrist", "stroke_x", "stroke_z", "turn")}
         self.p = replace(p, **{k: getattr(p, k) * v for k, v in jitter.items()},
                          pump_gain=p.pump_gain * (1.0 + n * rng.normal(0.0, 0.08)),
-                         flick_angle=p.flick_angle + n * rng.normal(0.0, 0.04),
+                         flick_angle=p.flick_angle + n * rng.normal(0.0, self.flick_jitter),
                          turn_delay=p.turn_delay + n * rng.normal(0.0, 0.008),
                          rearm=max(0.02, p.rearm + n * rng.normal(0.0, 0.01)))
         self.reaction = n * rng.uniform(0.0, 0.025)
+        if self.release_lag > 0:
+            self.reaction += float(rng.uniform(0.0, 2.0 * self.release_lag))
         self.tremor_scale = 0.02 * n
         self.wobble_scale = 0.12 * n      # the wrist is held only roughly at its set point [rad]
         self.wobble = n * rng.normal(0.0, 0.12)
@@ -165,6 +177,15 @@ class NunchakuMentor:
 
     def finished(self) -> bool:
         return self.done
+
+    @property
+    def outcome(self) -> str:
+        """Its verdict on the whole attempt, given by a careless labeller (``label_flip`` > 0), who
+        still saw whether the flip worked; "" otherwise: the recorder then calls a demo whose every
+        segment it labelled a success a success (how the default mentor's demos always were)."""
+        if self.label_flip <= 0 or not self.done:
+            return ""
+        return "success" if self.events["outcome"] == "success" else "failure"
 
     # One function on purpose: the mentor's decision procedure, phase by phase as the flip goes; a
     # phase that ends hands over to the next within the same tick, so the blocks read top to bottom.
@@ -272,8 +293,14 @@ class NunchakuMentor:
                 ok = flipped
             else:
                 continue
-            out.append(SegmentLabel(start, end, place, bool(ok), self.name))
+            out.append(SegmentLabel(start, end, place, self._say(bool(ok)), self.name))
         return out
+
+    def _say(self, verdict: bool) -> bool:
+        """The verdict it records: the wrong way round with probability ``label_flip``."""
+        if self.label_flip > 0 and self.rng.random() < self.label_flip:
+            return not verdict
+        return verdict
 
     def label(self, episode: Episode) -> list[SegmentLabel]:
         """Success or failure of every segment, judged from what happened next."""
@@ -288,5 +315,5 @@ class NunchakuMentor:
             "t5": ok_flip,
             "t6": False, "t7": False, "t8": False,
         }
-        return [SegmentLabel(s, e, tag, bool(verdict.get(tag, False)), labeller=self.name)
+        return [SegmentLabel(s, e, tag, self._say(bool(verdict.get(tag, False))), labeller=self.name)
                 for s, e, tag in episode.segments()]

@@ -49,6 +49,18 @@ class Pendulum(Task):
     }
     PLOT_VARIABLES = [("theta", "θ [rad]"), ("omega", "ω [rad/s]"), ("x", "x [m]"), ("xdot", "ẋ [m/s]")]
     ABLATIONS_AFTER_PRACTICE = False   # the baselines are copies of the trained model: run while it practises
+    MENTORS = {         # people of unequal skill at the joystick (PendulumMentor's arguments)
+        # quick, steady hands, seldom a mistake
+        "expert": {"name": "expert", "delay": (0.03, 0.05), "angle_noise": 0.005, "rate_noise": 0.025,
+                   "motor_noise": 0.01, "mistake_rate": 0.05},
+        # the default mentor's skill under a name of its own
+        "average": {"name": "average"},
+        # slower; pumps as well as anyone, but switches late and unevenly, balances sloppily (soft
+        # position gains, a shaky hand) and labels carelessly (three labels in ten the wrong way round)
+        "poor": {"name": "poor", "delay": (0.06, 0.10), "switch_angle": 0.3, "switch_jitter": 0.5,
+                 "hesitation": 0.05, "balance_scale": (0.85, 0.85, 0.5, 0.5), "balance_noise": 0.1,
+                 "label_flip": 0.3},
+    }
 
     def make_mentor(self, **kwargs: Any):
         """The scripted mentor standing in for a person with a joystick."""

@@ -91,9 +91,11 @@ class PendulumMentor:
     * Switch and balance: ``switch_angle``, ``switch_rate``, ``catch_time`` (length of ``t1``),
       ``hold_time`` (balance wanted), ``give_up`` (longest swing-up), ``fall_angle`` (the pendulum
       has fallen), ``recover`` (how often per demo it swings a fallen pendulum up again).
+    * Habits (none by default): ``balance_scale`` (balance gains times this), ``balance_noise``
+      (motor noise while balancing), ``hesitation`` (it switches a time drawn from [0, 2 h] after it
+      sees the moment), ``switch_jitter`` (the switch angle times a factor from [1 - j, 1 + j], drawn
+      at every turn), ``label_flip`` (chance of a label or grade the wrong way round). ``name``: who.
     """
-
-    name = "scripted-pendulum"
 
     def __init__(self, delay: tuple[float, float] = (0.04, 0.08), rate: float = 100.0, resolution: float = 0.02,
                  stick_accel: float = 25.0, v_max: float = 1.5, angle_noise: float = 0.01,
@@ -105,9 +107,16 @@ class PendulumMentor:
                  energy_margin: float = 0.03,
                  lead: float = 0.08, centring: float = 1.0, switch_angle: float = 0.4, switch_rate: float = 2.5,
                  catch_time: float = 0.5, hold_time: float = 5.0, give_up: float = 20.0, fall_angle: float = 0.8,
-                 recover: int = 1, dt: float = 0.001):
+                 recover: int = 1, dt: float = 0.001, name: str = "scripted-pendulum",
+                 balance_scale: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0),
+                 balance_noise: float | None = None, hesitation: float = 0.0, switch_jitter: float = 0.0,
+                 label_flip: float = 0.0):
         if mistake is not None and mistake not in MISTAKES + ("none",):
             raise ValueError(f"mistake must be one of {MISTAKES + ('none',)} or None, not {mistake!r}")
+        self.name = name
+        self.balance_gains = tuple(k * a for k, a in zip(BALANCE_GAINS, balance_scale))
+        self.balance_noise = motor_noise if balance_noise is None else balance_noise
+        self.hesitation, self.switch_jitter, self.label_flip = hesitation, switch_jitter, label_flip
         self.delay = delay
         self.rate = rate
         self.resolution = resolution
@@ -173,6 +182,9 @@ class PendulumMentor:
         self._buf[:] = 0.0
         if len(obs) >= 4:
             self._buf[:] = np.asarray(obs[:4], dtype=float)
+        self._switch_angle = self.switch_angle
+        self._seen_switch = -1                               # the step it first saw the moment to switch
+        self._wait = 0.0
 
     def act(self, obs: np.ndarray, info: dict[str, Any], t: float) -> tuple[np.ndarray, str]:
         k = self.k
@@ -211,6 +223,9 @@ class PendulumMentor:
             self._prev_omega_sign = s
             if turned:                                       # how high did it swing?
                 self._energy = G * (math.cos(th) - 1.0)
+                if self.switch_jitter > 0:
+                    j = self.switch_jitter
+                    self._switch_angle = self.switch_angle * float(self.rng.uniform(1.0 - j, 1.0 + j))
             elif abs(th) < 0.3:                              # how fast does it pass the top?
                 self._energy = e
             if phase == "t0":
@@ -221,10 +236,10 @@ class PendulumMentor:
             if (k - self.swing_start) * self.dt >= self.give_up:
                 self._finish("failure")
                 return self.cmd
-            if self._should_switch(th, om):
+            if self._switch_now(k, th, om):
                 self._enter("t1", k)
                 self.switch_step = k
-                return self._command(self._balance(th, om, x, xd))
+                return self._command(self._balance(th, om, x, xd), self.balance_noise)
             if phase == "t0" and t < self.kick_time:       # the push that starts a swing from rest
                 if self._kick_dir is None:
                     self._kick_dir = 0.0 if abs(om) > 1.0 else (-1.0 if math.sin(th) > 0 else 1.0)
@@ -251,7 +266,20 @@ class PendulumMentor:
                 return self.cmd
             if self.mistake_kind == "lapse" and self._lapse_at <= held < self._lapse_at + self._lapse_len:
                 return self.target                           # attention elsewhere: the stick stays put
-        return self._command(self._balance(th, om, x, xd))
+        return self._command(self._balance(th, om, x, xd), self.balance_noise)
+
+    def _switch_now(self, k: int, th: float, om: float) -> bool:
+        """Whether it switches now: at once when it sees the moment, or after its hesitation."""
+        if self._seen_switch < 0:
+            if not self._should_switch(th, om):
+                return False
+            if self.hesitation <= 0:
+                return True
+            self._seen_switch, self._wait = k, float(self.rng.uniform(0.0, 2.0 * self.hesitation))
+        if (k - self._seen_switch) * self.dt < self._wait:
+            return False
+        self._seen_switch = -1
+        return True
 
     def _should_switch(self, th: float, om: float) -> bool:
         if th * om >= 0.0:                                   # not rising towards upright
@@ -260,9 +288,9 @@ class PendulumMentor:
         if kind == "early_switch":
             return abs(th) < self._early_angle
         if kind == "over_pump":
-            return abs(th) < self.switch_angle
+            return abs(th) < self._switch_angle
         reach = 0.5 * self.lam * om * om + G * (math.cos(th) - 1.0)        # will it get near upright?
-        return abs(th) < self.switch_angle and abs(om) < self.switch_rate and reach > G * (math.cos(0.2) - 1.0)
+        return abs(th) < self._switch_angle and abs(om) < self.switch_rate and reach > G * (math.cos(0.2) - 1.0)
 
     def _pump(self, th: float, om: float, x: float, xd: float, e: float) -> float:
         target = self.energy_margin * G
@@ -275,11 +303,11 @@ class PendulumMentor:
         return -c * math.sin(th + self.lead * om) - self.centring * x
 
     def _balance(self, th: float, om: float, x: float, xd: float) -> float:
-        k1, k2, k3, k4 = BALANCE_GAINS
+        k1, k2, k3, k4 = self.balance_gains
         return k1 * th + k2 * om + k3 * x + k4 * xd
 
-    def _command(self, v: float) -> float:
-        v += self.motor_noise * float(self.rng.standard_normal())
+    def _command(self, v: float, noise: float | None = None) -> float:
+        v += (self.motor_noise if noise is None else noise) * float(self.rng.standard_normal())
         q = self.resolution
         v = round(v / q) * q if q > 0 else v
         return min(max(v, -self.v_max), self.v_max)
@@ -323,8 +351,12 @@ class PendulumMentor:
                 ok = held and bool(np.all(np.abs(th[start:end]) < self.fall_angle))
             else:
                 ok = False
-            labels.append(SegmentLabel(start, end, tag, bool(ok), self.name))
+            labels.append(SegmentLabel(start, end, tag, self._say(bool(ok)), self.name))
         return labels
+
+    def _say(self, verdict: bool) -> bool:
+        """The verdict it records: the wrong way round with probability ``label_flip``."""
+        return (not verdict) if self.label_flip > 0 and self.rng.random() < self.label_flip else verdict
 
     def grade_trial(self, episode: Episode, swung_up: str = "P1", balanced: str = "P2") -> list[SegmentLabel]:
         """The person's verdict on each stay of a robot's trial, from the trial's trace alone.
@@ -335,20 +367,28 @@ class PendulumMentor:
         it); a balancing stay when the pendulum stayed within ``fall_angle`` for ``hold_time`` s.
         The same tolerances as :meth:`label`; no simulator state is read.
         """
-        th = episode.column("theta")
-        n, dt = episode.num_samples, episode.dt
-        second = int(round(1.0 / dt))
-        segments = episode.segments()
-        out = []
-        for i, (start, end, place) in enumerate(segments):
-            nxt = segments[i + 1] if i + 1 < len(segments) else None
-            if place == swung_up:
-                ok = (nxt is not None and nxt[2] == balanced and end + second <= n
-                      and bool(np.all(np.abs(th[end:end + second]) < self.fall_angle)))
-            elif place == balanced:
-                ok = (end - start) * dt >= self.hold_time - 1e-9 and bool(np.all(np.abs(th[start:end]) < self.fall_angle))
-            else:
-                continue
-            out.append(SegmentLabel(start, end, place, bool(ok), self.name))
-        return out
+        return [SegmentLabel(s, e, place, self._say(ok), self.name)
+                for s, e, place, ok in stay_verdicts(episode, self.fall_angle, self.hold_time, swung_up, balanced)]
 
+
+
+def stay_verdicts(episode: Episode, fall_angle: float, hold_time: float, swung_up: str = "P1",
+                  balanced: str = "P2") -> list[tuple[int, int, str, bool]]:
+    """(start, end, place, verdict) of each swung-up and balanced stay of a trial seen by place, as
+    :meth:`PendulumMentor.grade_trial` describes."""
+    th = episode.column("theta")
+    n, dt = episode.num_samples, episode.dt
+    second = int(round(1.0 / dt))
+    segments = episode.segments()
+    out = []
+    for i, (start, end, place) in enumerate(segments):
+        nxt = segments[i + 1] if i + 1 < len(segments) else None
+        if place == swung_up:
+            ok = (nxt is not None and nxt[2] == balanced and end + second <= n
+                  and bool(np.all(np.abs(th[end:end + second]) < fall_angle)))
+        elif place == balanced:
+            ok = (end - start) * dt >= hold_time - 1e-9 and bool(np.all(np.abs(th[start:end]) < fall_angle))
+        else:
+            continue
+        out.append((start, end, place, bool(ok)))
+    return out

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import inspect
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -81,7 +82,7 @@ def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, A
     episode = Episode(
         obs=np.asarray(obs_rows), actions=np.asarray(act_rows), transitions=np.asarray(tags, dtype=str),
         observation_names=obs_names, command_names=cmd_names,
-        dt=dt, seed=seed, reset_options=options)
+        dt=dt, seed=seed, reset_options=options, mentor=str(getattr(mentor, "name", "") or ""))
     episode.labels = list(mentor.label(episode))
     # the mentor's verdict on the whole attempt where it gives one (a pushed demo that the mentor
     # recovered and balanced is a success with one failed segment); else: every segment succeeded
@@ -178,4 +179,28 @@ def record_many(task: Any, seeds: list[int], env_kwargs: dict[str, Any] | None =
             out.append(ep)
             if progress:
                 progress(i + 1, len(seeds))
+    return out
+
+
+
+def record_by_mentors(task: Any, seeds: list[int], plan: Sequence[tuple[str | None, int]],
+                      env_kwargs: dict[str, Any] | None = None, workers: int = 1, progress: Any = None,
+                      start_method: str | None = None, ray: str | None = None) -> list[Episode]:
+    """Demonstrations by several of the task's scripted mentors: ``plan`` lists (mentor name, count)
+    in order (None: the task's default mentor), the counts adding up to ``len(seeds)``; the first
+    ``count`` seeds go to the first mentor, and so on (:func:`record_many` records each block)."""
+    from ..task import load_task
+    if sum(n for _, n in plan) != len(seeds) or any(n < 0 for _, n in plan):
+        raise InvalidInput(f"the mentors' counts {[n for _, n in plan]} do not add up to {len(seeds)} demonstrations",
+                           element="mentors")
+    t = load_task(task)
+    out: list[Episode] = []
+    for name, n in plan:
+        block = seeds[len(out):len(out) + n]
+        if not block:
+            continue
+        done = len(out)
+        out += record_many(task, block, env_kwargs, mentor_kwargs=t.mentor_kwargs(name), workers=workers,
+                           progress=(lambda i, k, done=done: progress(done + i, len(seeds))) if progress else None,
+                           start_method=start_method, ray=ray)
     return out

@@ -9,6 +9,8 @@ mentor's grades of some trials and its takeovers of failed ones, and refits of t
 * The mentor takes over failed trials (:mod:`..takeover`): a demonstration from where the robot
   knew least, learned from at the next refit. Grades and takeovers share the mentor's time,
   ``mentor_trials`` (:meth:`~.config.PracticeConfig.budgets`).
+* With several mentors, every graded trial and every mentor's grade updates how far each mentor is
+  trusted (:mod:`multiform.learn.fusion`), which the next refits and judge revisions use.
 * Every ``refit_every`` trials, while the plain trials show the skill falls short of
   ``target_rate`` (read off at least ``shortfall_after`` plain trials of the net as it is now),
   each law with new own data is refitted from the mentor's and its own data (a ``refit_law``
@@ -75,6 +77,19 @@ class Learning:
         if own:
             self.ctx.experience.add(trace, own, source)
         record.own_segments = len(own)
+        self._weigh_mentors(k, trace, grade, apn)
+
+    def _weigh_mentors(self, k: int, trace: Trace, grade: TrialGrade, apn: APN) -> None:
+        """With several mentors: the trial, as the robot graded it, is evidence on the mentors whose
+        demonstrated maneuvers it reproduced (:meth:`~multiform.learn.fusion.Fusion.observe_trial`)."""
+        model = self.ctx.model
+        fusion = model.fusion()
+        if fusion is None:
+            return
+        stays = {(g.start, g.end): bool(g.success) for g in grade.segments}
+        if fusion.observe_trial(apn, model.raw_episodes, trace.to_episode(), stays, model.history.version(0)):
+            fusion.snapshot(f"trial {k}", scenario=self.ctx.name, trial=k)
+            model.save_fusion(fusion)
 
     def mentor_grades(self, k: int, trace: Trace, grade: TrialGrade, apn: APN
                       ) -> tuple[dict[tuple[int, int], bool], MentorGrade]:
@@ -91,6 +106,10 @@ class Learning:
         account = MentorGrade(trial=k, stays=len(verdicts), agree=int(sum(robot.get(key) == v for key, v in verdicts.items())),
                               mentor_success=int(sum(verdicts.values())),
                               robot_success=int(sum(robot.get(key, False) for key in verdicts)))
+        fusion = ctx.model.fusion()
+        if fusion is not None and labels:       # several mentors: the grades join what their trust rests on
+            fusion.observe_grades(apn, ep, source, labels)
+            ctx.model.save_fusion(fusion)
         if records:
             ctx.experience.keep_trace(trace, source)
             ctx.model.labels.add_many(records)
@@ -167,7 +186,7 @@ class Learning:
             refitted, info = fit_law(mentor_net, model.episodes + list(takeovers.values()), law,
                                      seed=cfg.seed, own=own, own_apn=apn, current=model.laws(apn).get(law),
                                      mentor_law=model.laws(mentor_net).get(law),
-                                     settings=LawSettings(own_novelty=cfg.novelty))
+                                     settings=LawSettings(own_novelty=cfg.novelty), fusion=model.fusion())
             fit = ctx.learners.fresh_law(law)
             model.save_law(fit, refitted)
             evidence = {"own_segments": len(mine), "new_own_segments": len(new), "own_trials": len(own),
