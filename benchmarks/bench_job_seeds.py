@@ -10,6 +10,10 @@ median and range over seeds. No ablations, videos or report (``multiform demo`` 
 The figures also go to ``benchmarks/results/bench_job_seeds_<task>.json`` (``--results DIR``).
 
     .venv/bin/python benchmarks/bench_job_seeds.py --out runs/seeds --seeds 0 1 2 [--trials 200]
+        [--demos 5] [--practice '{"deliberate": true}']
+
+``--demos`` and ``--practice`` (PracticeConfig settings over every scenario's own, as ``multiform demo
+--practice``) make a variant of the job; its figures are recorded under a name of their own.
 
 About 6 minutes per seed on this 2-core machine with 200 trials. Each seed's run folder
 (``OUT/seed_N``) is kept; a folder that already holds a finished seed is reused.
@@ -19,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import json
 import os
 import statistics
 import sys
@@ -45,13 +50,15 @@ from multiform.stats import wilson  # noqa: E402
 from multiform.task import load_task  # noqa: E402
 
 
-def one_seed(task: str, out: Path, seed: int, trials: int, eval_seed: int, workers: int) -> dict:
+def one_seed(task: str, out: Path, seed: int, trials: int, eval_seed: int, workers: int,
+             demos: int | None = None, practice: dict | None = None) -> dict:
     done = out / "seed_result.json"
     if done.exists():
         res = read_json(done, "seed result")
         if "practice_trials" in res:          # a result written before practice was counted: finish it again
             return res
-    job = Job(task, out, JobConfig(seed=seed, workers=workers), log=lambda *a: None, progress=False)
+    job = Job(task, out, JobConfig(seed=seed, workers=workers, demos=demos, practice=practice or {}),
+              log=lambda *a: None, progress=False)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     demos = job.record()
@@ -83,13 +90,19 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=200, help="evaluation trials per seed")
     ap.add_argument("--eval-seed", type=int, default=0, help="the evaluation trials every seed's skill meets")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--demos", type=int, default=None, help="demonstrations per job (default: the task's)")
+    ap.add_argument("--practice", type=json.loads, default={}, metavar="JSON",
+                    help="practice settings over every scenario's own, e.g. '{\"deliberate\": true}'")
     add_option(ap)
     args = ap.parse_args()
     task = load_task(args.task)
-    rec = Record(__file__, "The main job's spread over job seeds", section="seeds", variant=task.TASK)
+    variant = task.TASK + (f"_{args.demos}_demos" if args.demos else "") + "".join(
+        f"_{k}_{str(v).lower()}" for k, v in sorted(args.practice.items()))
+    rec = Record(__file__, "The main job's spread over job seeds", section="seeds", variant=variant)
     rows = []
     for seed in args.seeds:
-        r = one_seed(args.task, Path(args.out) / f"seed_{seed}", seed, args.trials, args.eval_seed, args.workers)
+        r = one_seed(args.task, Path(args.out) / f"seed_{seed}", seed, args.trials, args.eval_seed, args.workers,
+                     args.demos, args.practice)
         rows.append(r)
         lo, hi = wilson(r["successes"], r["trials"])
         print(f"seed {seed}: {100 * r['successes'] / r['trials']:.1f} % ({r['successes']}/{r['trials']}; "
@@ -103,7 +116,9 @@ def main() -> None:
         rates = [r["successes"] / r["trials"] for r in rows]
         print(f"over {len(rates)} seeds: median {100 * statistics.median(rates):.1f} %, "
               f"range {100 * min(rates):.1f}-{100 * max(rates):.1f} % "
-              f"(target ≥ {100 * task.TARGET_SUCCESS_RATE:.0f} % for every seed)")
+              f"(target ≥ {100 * task.TARGET_SUCCESS_RATE:.0f} % for every seed); robot time in practice: median "
+              f"{statistics.median(r['robot_seconds'] for r in rows):.0f} s, "
+              f"most {max(r['robot_seconds'] for r in rows):.0f} s")
         record_seeds(rec, task, rows, args.eval_seed)
         rec.write(args.results)
 

@@ -102,3 +102,16 @@ def test_options_for_a_changed_object_are_checked_as_plain_data(text):
     with pytest.raises(SystemExit) as info:
         build_parser().parse_args(["practice", "m", "--options", text])
     assert info.value.code == 2
+
+
+def test_a_job_overrides_every_scenarios_practice_settings_and_refuses_what_it_may_not_change(tmp_path):
+    from multiform.job import Job, JobConfig
+    for sc in load_task("pendulum").scenarios():
+        cfg = sc.with_config({"deliberate": True, "success_streak": 7}).practice_config(30, 1)
+        assert (cfg.deliberate, cfg.success_streak, cfg.learn, cfg.max_trials) == (True, 7, sc.learn, 30)
+    for bad, element in [({"bogus": 1}, "practice.bogus"), ({"seed": 3}, "practice.seed"),
+                         ({"deliberate": 3}, "practice.deliberate")]:
+        with pytest.raises(InvalidInput) as info:
+            Job("pendulum", tmp_path / "run", JobConfig(practice=bad))
+        assert info.value.problems[0].element == element
+    assert not (tmp_path / "run").exists()

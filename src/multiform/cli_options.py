@@ -452,6 +452,10 @@ def _add_run_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
                    help="demonstrations by several of the task's scripted mentors, in order: expert:5,poor:10, or "
                         "expert,average,poor to share --demos evenly; they also take turns grading practice trials "
                         "(default: the task's default mentor alone)")
+    p.add_argument("--practice", type=_json_object, default={}, metavar="JSON",
+                   help="practice settings over every scenario's own (PracticeConfig fields, see "
+                        'multiform.adapt.practice), e.g. \'{"deliberate": true, "max_robot_seconds": 900}\' '
+                        "(default: the task's)")
     _add_fusion(p)
     _add_view(p, "the report's picked trials (saved in RUN/view/)")
     _add_ray(p)

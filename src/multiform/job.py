@@ -19,7 +19,7 @@ import contextlib
 import statistics
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +29,7 @@ from .evaluation import Evaluator, Variant
 from .demos.dataset import read_dataset, write_dataset
 from .demos.episode import Episode
 from .teach.record import demo_push, record_by_mentors, record_many
-from .errors import InvalidInput
+from .errors import InvalidInput, Problem
 from .io import write_json
 from .lock import exclusive
 from .model import SkillModel, staged_model_dir
@@ -65,6 +65,8 @@ class JobConfig:
     mentors: tuple[tuple[str, int], ...] = ()   # the task's named mentors and how many demos each records, in
                                      # order (their counts add up to ``demos``); (): the task's default mentor
     fusion: bool = True              # with several mentors, weigh them by estimated trust; False: pool them
+    practice: dict[str, Any] = field(default_factory=dict)   # PracticeConfig fields over every scenario's own,
+                                     # e.g. {"deliberate": True, "max_robot_seconds": 900}
 
 
 class Job:
@@ -83,6 +85,8 @@ class Job:
             if sum(n for _, n in self.cfg.mentors) != self.cfg.demos:
                 raise InvalidInput(f"the mentors' demonstrations {[n for _, n in self.cfg.mentors]} do not add up to "
                                    f"{self.cfg.demos}", element="mentors")
+        if self.cfg.practice:
+            _check_practice_overrides(self.cfg.practice)
         self.log = log
         self.progress = progress
         self.view = view            # None, or where the picked trials stream (see multiform.view.stream.viewer_url)
@@ -178,6 +182,8 @@ class Job:
             if limit <= 0:
                 continue
             graders = tuple(dict.fromkeys(name for name, _ in self.cfg.mentors)) if len(self.cfg.mentors) > 1 else ()
+            if self.cfg.practice:
+                sc = sc.with_config(self.cfg.practice)
             practice = sc.practice(model, folder, limit, self.cfg.seed + index, mentors=graders)
             cfg = practice.config
             with self._bar(cfg.max_trials, f"practice {sc.name}") as bar:
@@ -353,3 +359,18 @@ def _learning_summary(state: Any) -> dict[str, Any]:
                                  "rate": round(sum(g.agree for g in graded) / stays, 4) if stays else None},
             "plain_trials": len(plain), "plain_successes": sum(t.success for t in plain),
             "curve": [[t.trial, bool(t.success), bool(t.explored)] for t in state.trials]}
+
+
+def _check_practice_overrides(overrides: dict[str, Any]) -> None:
+    """Refuse practice overrides that are not settings a job may change, or not valid values."""
+    from .adapt.practice import PracticeConfig
+    own = {"max_trials", "seed"}                    # the job sets these per scenario
+    names = {f.name for f in fields(PracticeConfig)} - own
+    for key in overrides:
+        if key not in names:
+            raise InvalidInput(f"not a practice setting a job may change (one of {', '.join(sorted(names))})",
+                               element=f"practice.{key}")
+    try:
+        PracticeConfig(**overrides)
+    except InvalidInput as exc:
+        raise InvalidInput([Problem(p.file, f"practice.{p.element}", p.message) for p in exc.problems]) from None

@@ -62,10 +62,16 @@ class Scenario:
         base = self.options
         return replace(self, options=lambda k: {**base(k), **options})
 
+    def with_config(self, overrides: Mapping[str, Any]) -> Scenario:
+        """This scenario with ``overrides`` (:class:`~multiform.adapt.practice.PracticeConfig` fields)
+        over its own practice settings."""
+        return replace(self, config={**self.config, **overrides})
+
     def practice_config(self, max_trials: int, seed: int) -> Any:
         """The scenario's :class:`~multiform.adapt.practice.PracticeConfig`."""
         from .adapt.practice import REPAIR_ONLY, PracticeConfig
-        return PracticeConfig(**({} if self.learn else REPAIR_ONLY), **self.config, max_trials=max_trials, seed=seed)
+        return PracticeConfig(**{**({} if self.learn else REPAIR_ONLY), **self.config}, max_trials=max_trials,
+                              seed=seed)
 
     def practice(self, model: Any, folder: str | Path, max_trials: int, seed: int = 0,
                  observe: Callable[[int, Any], Any] | None = None, mentors: Sequence[str] = ()) -> Any:
