@@ -164,47 +164,7 @@ class SkillModel:
         not finite; a history that does not replay; and, for running the skill (``to_run``), the
         net's laws and conditions without a fit, a torque-driven env without its inverse model, an
         env id that is not allowed or arguments the env refuses, demonstrations that are not a file."""
-        try:
-            m = self.manifest
-            apn = self.apn
-        except InvalidInput as exc:
-            return list(exc.problems)
-        listed: dict[str, dict[str, Any]] = m["artifacts"]
-        out: list[Problem] = []
-        for rel, info in listed.items():
-            out += _check_artifact(self.path, rel, info)
-        for folder in ARTIFACT_FOLDERS:
-            for p in sorted((self.path / folder).glob("*.npz")):
-                rel = p.relative_to(self.path).as_posix()
-                if rel not in listed:
-                    out.append(Problem(str(p), "", "not listed in model.json's artifacts (not written by multiform "
-                                                   "for this model)"))
-        for name in ARTIFACT_FILES:
-            if (self.path / name).exists() and name not in listed:
-                out.append(Problem(str(self.path / name), "", "not listed in model.json's artifacts"))
-        if not to_run:
-            return out
-        for name, spec in apn.laws.items():
-            if f"laws/{spec.fit_name}.npz" not in listed:
-                out.append(Problem(str(self.path / "laws" / f"{spec.fit_name}.npz"), f"laws.{name}",
-                                   "the net runs this fit, but the model has none (train first)"))
-        for t in apn.transitions:
-            if t.condition.is_learned and f"conditions/{t.condition.model}.npz" not in listed:
-                out.append(Problem(str(self.path / "conditions" / f"{t.condition.model}.npz"),
-                                   f"transitions.{t.id}.condition", "the learned condition is missing"))
-        if needs_inverse_model(m) and "inverse_model.npz" not in listed:
-            out.append(Problem(str(self.path / "inverse_model.npz"), "",
-                               f"missing: the env takes joint torques (env_kwargs {m['env_kwargs']}), and without "
-                               f"the inverse model nothing turns the skill's commands into torques"))
-        demos = m.get("demos")
-        if demos and os.path.lexists(demos) and not os.path.isfile(demos):
-            out.append(Problem(demos, "", "not a regular file (a folder, FIFO or device); model.json names it as "
-                                          "the model's demonstrations"))
-        try:
-            self.make_env().close()          # the env's id and the arguments it takes, before any trial
-        except InvalidInput as exc:
-            out += exc.problems
-        return out
+        return directory_problems(self, to_run)
 
     def verify(self, to_run: bool = True) -> None:
         """Raise :class:`InvalidInput` listing every problem (see :meth:`problems`); a model that
@@ -223,7 +183,6 @@ class SkillModel:
             self._verified_to_run = key
         else:
             self._verified = key
-
 
     # -- the net ----------------------------------------------------------------------------------
     @property
@@ -388,6 +347,52 @@ class SkillModel:
         """The transitions of the skill as written that do not lead to failure (version 0 never changes)."""
         written = self.history.version(0)
         return frozenset(t.id for t in written.transitions if not written.leads_to_failure(t.id))
+
+
+
+def directory_problems(model: SkillModel, to_run: bool = True) -> list[Problem]:
+    """What :meth:`SkillModel.problems` finds."""
+    try:
+        m = model.manifest
+        apn = model.apn
+    except InvalidInput as exc:
+        return list(exc.problems)
+    listed: dict[str, dict[str, Any]] = m["artifacts"]
+    out: list[Problem] = []
+    for rel, info in listed.items():
+        out += _check_artifact(model.path, rel, info)
+    for folder in ARTIFACT_FOLDERS:
+        for p in sorted((model.path / folder).glob("*.npz")):
+            rel = p.relative_to(model.path).as_posix()
+            if rel not in listed:
+                out.append(Problem(str(p), "", "not listed in model.json's artifacts (not written by multiform "
+                                               "for this model)"))
+    for name in ARTIFACT_FILES:
+        if (model.path / name).exists() and name not in listed:
+            out.append(Problem(str(model.path / name), "", "not listed in model.json's artifacts"))
+    if not to_run:
+        return out
+    for name, spec in apn.laws.items():
+        if f"laws/{spec.fit_name}.npz" not in listed:
+            out.append(Problem(str(model.path / "laws" / f"{spec.fit_name}.npz"), f"laws.{name}",
+                               "the net runs this fit, but the model has none (train first)"))
+    for t in apn.transitions:
+        if t.condition.is_learned and f"conditions/{t.condition.model}.npz" not in listed:
+            out.append(Problem(str(model.path / "conditions" / f"{t.condition.model}.npz"),
+                               f"transitions.{t.id}.condition", "the learned condition is missing"))
+    if needs_inverse_model(m) and "inverse_model.npz" not in listed:
+        out.append(Problem(str(model.path / "inverse_model.npz"), "",
+                           f"missing: the env takes joint torques (env_kwargs {m['env_kwargs']}), and without "
+                           f"the inverse model nothing turns the skill's commands into torques"))
+    demos = m.get("demos")
+    if demos and os.path.lexists(demos) and not os.path.isfile(demos):
+        out.append(Problem(demos, "", "not a regular file (a folder, FIFO or device); model.json names it as "
+                                      "the model's demonstrations"))
+    try:
+        model.make_env().close()          # the env's id and the arguments it takes, before any trial
+    except InvalidInput as exc:
+        out += exc.problems
+    return out
 
 
 def registered_env_id(env_id: Any, file: str, env_modules: Sequence[str] = ()) -> str:
