@@ -20,7 +20,8 @@ judges trained with the poor mentor's labels fused, pooled, and from the expert'
 
 Every run folder (``OUT/TASK/seed_S/VARIANT``) is kept and reused: a variant already evaluated is not
 run again. About 6-10 minutes per pendulum run on a quiet 2-core machine. All figures are kept in
-one dict (``FIGURES``), printed as JSON at the end.
+one dict (``FIGURES``), printed as JSON at the end and recorded (with every success rate and check as
+a figure) in ``benchmarks/results/bench_mentors.json`` (``--results DIR``).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -39,6 +41,9 @@ warnings.filterwarnings("ignore", message="A single label was found", category=U
 warnings.filterwarnings("ignore", message="y_pred contains classes not in y_true", category=UserWarning)
 
 import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import Record, add_option, at_least  # noqa: E402
 
 import multiform.envs  # noqa: E402,F401  (registers the envs and the arm's servo: a resumed run loads its inverse model)
 
@@ -136,7 +141,10 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=200)
     ap.add_argument("--fresh", type=int, default=10, help="fresh labelled demonstrations per mentor for the judges")
     ap.add_argument("--workers", type=int, default=2)
+    add_option(ap)
     args = ap.parse_args()
+    rec = Record(__file__, "Several mentors: fusion against pooling and the best mentor alone", section="mentors",
+                 variant="_".join(args.tasks) if args.tasks != ["pendulum", "nunchaku"] else None)
     out = Path(args.out)
     log = lambda text: print(text, flush=True)  # noqa: E731
     for task in args.tasks:
@@ -158,7 +166,37 @@ def main() -> None:
                                                 "after_practice": r["trust_after_practice"], "labels": r["labels"]}
                                             for v, r in rows.items() if r["trust_after_training"]}}
         report(task, fig, args.variants)
+        record(rec, task, fig)
     print(json.dumps(FIGURES, indent=1, default=str))
+    rec.details["figures"] = FIGURES
+    rec.write(args.results)
+
+
+def record(rec: Record, task: str, fig: dict) -> None:
+    """Every variant's success rate per seed (the fused one against the task's bar) and every
+    check, as figures of the results record."""
+    for seed, d in fig["seeds"].items():
+        for v, r in d["rates"].items():
+            plan = " + ".join(f"{m} {n}" for m, n in PLANS[v][0]) + ("" if PLANS[v][1] else ", pooled")
+            rec.rate(f"{task}_seed_{seed}_{v}", f"{task}, job seed {seed}: {v} ({plan})", r["successes"], r["trials"],
+                     target=at_least(TARGET[task]) if v == "fused" else None,
+                     counts={"pushed": r["pushed"]} if r["pushed"] else None)
+        if d["judge_accuracy"]:
+            rec.figure(f"{task}_seed_{seed}_judges",
+                       f"{task}, job seed {seed}: the judges' accuracy on fresh, honestly labelled stays",
+                       d["judge_accuracy"].get("fused", {}).get("overall"), "%",
+                       values={v: a["overall"] for v, a in d["judge_accuracy"].items()},
+                       target="fused within 2 points of the expert's alone",
+                       met=(None if not {"fused", "expert"} <= set(d["judge_accuracy"]) else
+                            d["judge_accuracy"]["fused"]["overall"] >= d["judge_accuracy"]["expert"]["overall"] - 0.02))
+    for i, (name, vals) in enumerate(fig.get("checks", {}).items()):
+        rec.figure(f"{task}_check_{i}", f"{task}: {name}, per seed", f"{sum(vals)} of {len(vals)} seeds",
+                   target="every seed", met=all(vals))
+    ranks = fig.get("ranking_expert_average_poor", [])
+    if ranks:
+        rec.figure(f"{task}_ranking", f"{task}: estimated trust ranks expert > average > poor where the poor mentor "
+                   "is sloppy (per seed and maneuver)", f"{sum(r[2] for r in ranks)} of {len(ranks)}",
+                   target="every one", met=all(r[2] for r in ranks))
 
 
 def report(task: str, fig: dict, variants: list[str]) -> None:

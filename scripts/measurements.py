@@ -53,6 +53,11 @@ SECTIONS = (
             "made practice fail, how many practice repaired, and how close the repaired skill comes to the "
             "sound one.",
             ("bench_repair",)),
+    Section("mentors", "Several mentors",
+            "Demonstrations and labels by mentors of unequal skill: the skill learned with estimated trust "
+            "(fusion) beside the same demonstrations pooled and beside the best mentor alone, on the same "
+            "evaluation trials, and the judges' accuracy on fresh, honestly labelled segments.",
+            ("bench_mentors",)),
     Section("components", "The learned components",
             "Held-out accuracy of what training learns: the control laws, the judges, the learned "
             "conditions; and how a law's fit shows in closed loop.",
