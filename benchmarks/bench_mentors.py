@@ -45,8 +45,6 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import Record, add_option, at_least  # noqa: E402
 
-import multiform.envs  # noqa: E402,F401  (registers the envs and the arm's servo: a resumed run loads its inverse model)
-
 from multiform.evaluation import Variant, evaluate  # noqa: E402
 from multiform.io import read_json, write_json  # noqa: E402
 from multiform.job import Job, JobConfig  # noqa: E402

@@ -1,12 +1,16 @@
-"""The bundled Gymnasium envs: their ids, where each lives, and its time limit. Registering them
-imports no env: Gymnasium loads an env's module when it is first made (which also registers the
-arm's servo, see :mod:`multiform.envs`)."""
+"""The bundled Gymnasium envs (their ids, where each lives, and its time limit) and the bundled
+robots' servos (what an inverse model names). Registering them imports no env: Gymnasium loads an
+env's module when it is first made, and a servo's module is imported when a model first names it."""
 
 from __future__ import annotations
 
 ENVS = {   # id -> (entry point, max_episode_steps: a skill's default max_duration at 1 ms a step)
     "multiform/ArmPendulum-v0": ("multiform.envs.arm_pendulum:ArmPendulumEnv", 60_000),
     "multiform/Nunchaku-v0": ("multiform.envs.nunchaku:NunchakuEnv", 15_000),
+}
+
+SERVOS = {   # name -> the function that builds it (see multiform.learn.servos)
+    "arm_pendulum": "multiform.envs.arm_servo:arm_pendulum_servo",
 }
 
 

@@ -62,3 +62,19 @@ def test_round_trip_and_refusals(babbled, tmp_path):
     with pytest.raises(InvalidInput, match="servo"):
         InverseDynamicsModel.load(bad)
     assert p.read_bytes() == p.read_bytes() and InverseDynamicsModel.load(p).n_train_ == model.n_train_
+
+
+def test_a_saved_model_loads_in_a_fresh_interpreter_that_imported_no_env(babbled, tmp_path):
+    """``multiform evaluate MODEL`` loads the inverse model before any env is made: the arm's servo
+    must be known from the registry, not from an import of the envs package."""
+    import subprocess
+    import sys
+    env, model, (O, A, T) = babbled
+    p = tmp_path / "inv.npz"
+    model.save(p)
+    code = ("import sys; from multiform.learn.inverse import InverseDynamicsModel; "
+            f"m = InverseDynamicsModel.load({str(p)!r}); "
+            "assert 'multiform.envs.arm_pendulum' not in sys.modules; print(m.n_train_)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert int(out.stdout) == model.n_train_

@@ -15,8 +15,8 @@ Every env here exposes ``observation_names`` (one name per observation entry) an
 ``command_names`` (one name per entry of the end-effector command), so that a skill file can name
 its state variables and the library never needs to know which env it drives.
 
-Importing this package registers the arm's servo for its inverse model
-(:mod:`multiform.envs.arm_servo`) and picks MuJoCo's offscreen renderer (:mod:`multiform.envs.rendering`).
+Importing this package picks MuJoCo's offscreen renderer (:mod:`multiform.envs.rendering`); the arm's
+servo for its inverse model (:mod:`multiform.envs.arm_servo`) is named in :mod:`multiform.registry`.
 Both envs step 1 ms of physics per call, so ``render_fps`` is 1000 (a video of every frame plays in
 real time), unless ``frame_skip`` makes each step longer (``render_fps`` ``1000 / frame_skip``:
 what keeps Gymnasium's ``RecordVideo`` to a few hundred MB, see
@@ -26,15 +26,6 @@ counted in steps) that a ``gymnasium.make`` argument overrides. ``RecordVideo`` 
 """
 
 from .rendering import BACKEND as GL_BACKEND  # noqa: F401  (sets MUJOCO_GL before mujoco is imported)
-from ..learn.servos import register_servo  # noqa: E402
 from ..registry import register_envs  # noqa: E402
-
-
-def _arm_pendulum_servo():
-    from .arm_servo import arm_pendulum_servo
-    return arm_pendulum_servo()
-
-
-register_servo("arm_pendulum", _arm_pendulum_servo)
 
 register_envs()

@@ -35,7 +35,7 @@ from ..errors import InvalidInput
 from ..io import load_npz, save_npz
 from .compiled import gp_mean_one
 from .gp import GPLaw
-from .servos import SERVOS, Servo, register_servo  # noqa: F401  (the registry, filled by the robots' packages)
+from .servos import SERVOS, Servo, known_servos, register_servo, servo_factory  # noqa: F401  (the registry)
 
 KIND = "inverse_model"
 VERSION = 2                     # 2: the residual GP's metadata nested under "gp"
@@ -59,9 +59,10 @@ class InverseDynamicsModel(BaseEstimator):
         self.random_state = random_state
 
     def _servo(self) -> Servo:
-        if self.servo not in SERVOS:
-            raise ValueError(f"unknown servo {self.servo!r} (known: {', '.join(SERVOS)})")
-        return SERVOS[self.servo]()
+        factory = servo_factory(self.servo)
+        if factory is None:
+            raise ValueError(f"unknown servo {self.servo!r} (known: {', '.join(known_servos())})")
+        return factory()
 
     def _joint_index(self, sv: Servo) -> list[int]:
         names = list(sv.observation_names)
@@ -144,11 +145,12 @@ class InverseDynamicsModel(BaseEstimator):
     def load(cls, path: str | os.PathLike) -> InverseDynamicsModel:
         arrays, meta = load_npz(path, KIND, VERSION)
         f = str(path)
-        if meta.get("servo") not in SERVOS:
-            raise InvalidInput(f"unknown servo {meta.get('servo')!r} (known: {', '.join(SERVOS)})", file=f,
+        factory = servo_factory(meta.get("servo"))
+        if factory is None:
+            raise InvalidInput(f"unknown servo {meta.get('servo')!r} (known: {', '.join(known_servos())})", file=f,
                                element="servo")
         n = int(meta.get("n_joints", 0))
-        sv = SERVOS[meta["servo"]]()
+        sv = factory()
         probe = [0.0] * len(sv.observation_names)
         d = 2 * n + 6 + len(sv.basis(math, probe, [0.0] * 6))
         d_gp = 2 * n + 6 + len(sv.load(math, probe, [0.0] * 6))
