@@ -15,7 +15,7 @@ EXIT_BAD_INPUT = 2
 MAX_SEED = 2**31 - 1
 Handlers = Mapping[str, Callable[[argparse.Namespace], int]]
 
-TASK_HELP = ("a task: bundled (pendulum, nunchaku), installed (entry point group multiform.tasks), "
+TASK_HELP = ("a task: bundled (pendulum, nunchaku, ball_in_cup), installed (entry point group multiform.tasks), "
              "package.module:NAME or path/to/file.py:NAME")
 
 def _count(low: int, high: int):
@@ -224,7 +224,7 @@ def _add_demonstration_commands(sub: argparse._SubParsersAction, h: Handlers) ->
     p = sub.add_parser("record", help="record scripted-mentor demonstrations of a task (HDF5)")
     p.add_argument("task", metavar="TASK", help=TASK_HELP)
     p.add_argument("--demos", type=_count(1, 1000), default=_default(api.record, "demos"),
-                   help="number of demonstrations (default: the task's DEMOS, 10 for pendulum and nunchaku)")
+                   help="number of demonstrations (default: the task's DEMOS, 10 for each bundled task)")
     p.add_argument("--out", "-o", required=True, help="output .h5 file")
     _add_overwrite(p, "--out")
     _add_workers(p, _default(api.record, "workers"))
@@ -233,6 +233,7 @@ def _add_demonstration_commands(sub: argparse._SubParsersAction, h: Handlers) ->
     p.add_argument("--mentor", default=None, metavar="NAME",
                    help="which of the task's scripted mentors demonstrates (pendulum and nunchaku: expert, average, "
                         "poor); its name is stored with every demo and label (default: the task's default mentor)")
+    _add_kinesthetic(p)
     _add_ray(p)
     p.set_defaults(func=h["record"])
 
@@ -429,7 +430,7 @@ def _add_run_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
     p.add_argument("task", metavar="TASK", help=TASK_HELP)
     p.add_argument("--out", "-o", required=True, help="run folder (resumed if it exists)")
     p.add_argument("--demos", type=_count(1, 1000), default=None,
-                   help="demonstrations (default: the task's DEMOS, 10 for pendulum and nunchaku)")
+                   help="demonstrations (default: the task's DEMOS, 10 for each bundled task)")
     p.add_argument("--eval-trials", type=_count(1, 1_000_000), default=JOB_DEFAULTS["eval_trials"],
                    help="evaluation trials of the final skill")
     p.add_argument("--ablation-trials", type=_count(0, 1_000_000), default=JOB_DEFAULTS["ablation_trials"],
@@ -453,9 +454,17 @@ def _add_run_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
                         "expert,average,poor to share --demos evenly; they also take turns grading practice trials "
                         "(default: the task's default mentor alone)")
     _add_fusion(p)
+    _add_kinesthetic(p)
     _add_view(p, "the report's picked trials (saved in RUN/view/)")
     _add_ray(p)
     p.set_defaults(func=h["demo"])
+
+
+def _add_kinesthetic(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--kinesthetic", action=argparse.BooleanOptionalAction, default=None,
+                   help="the mentor teaches by guiding the compliant arm by hand: the commands are recovered from the "
+                        "arm's motion and the person's forces are never kept (default: the task's KINESTHETIC: on for "
+                        "ball_in_cup, off for pendulum; nunchaku has no hand-guiding mode)")
 
 
 def _add_output_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
