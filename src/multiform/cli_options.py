@@ -157,7 +157,7 @@ def build_parser(handlers: Handlers) -> argparse.ArgumentParser:
                     "(GP control laws) and evaluation (SVM judges); the robot practises and repairs "
                     "the definition itself.",
         epilog="Start with `multiform demo pendulum --out runs/pendulum`. SKILL is a skill file "
-               "or the name of a bundled skill (pendulum, pendulum_strict, nunchaku). Exit status: 0 ok, "
+               "or the name of a bundled skill (pendulum, pendulum_strict, nunchaku, ball_in_cup). Exit status: 0 ok, "
                "2 the input is wrong, 66 an input file is missing, 1 an internal error.")
     parser.add_argument("--version", action="version", version=f"multiform {_version()}")
     parser.add_argument("--debug", action="store_true", help="show the traceback of an internal error")

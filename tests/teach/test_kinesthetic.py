@@ -92,3 +92,10 @@ def test_guided_wraps_only_on_a_guided_arm():
     hand = guided(mentor, gym.make("multiform/ArmPendulum-v0", action_mode="kinesthetic"))
     assert isinstance(hand, GuidingHand) and hand.mentor is mentor and hand.name == mentor.name
     assert guided(hand, gym.make("multiform/ArmPendulum-v0", action_mode="kinesthetic")) is hand
+
+
+def test_replay_refuses_a_guided_demonstration_saying_why(tmp_path):
+    from multiform.view.replay import replay_demo
+    out = api.record("pendulum", tmp_path / "k.h5", demos=1, workers=1, kinesthetic=True)
+    with pytest.raises(InvalidInput, match="guided the arm"):
+        replay_demo(out)
