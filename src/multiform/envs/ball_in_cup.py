@@ -19,7 +19,7 @@ Actions (``action_mode``):
 * ``"ee"`` (default): ``[vx, vz]``, the desired flange velocity in the swing plane [m/s], clipped to
   ±2. The reference controller (:func:`multiform.envs.osc.planar_task_acceleration` then computed
   torque, :func:`multiform.envs.osc.torques_for`) tracks it: a 30 rad/s velocity servo per axis
-  with soft walls at |x| = 0.35 m and z from -0.15 to +0.2 m about the centre, the acceleration
+  with soft walls at |x| = 0.45 m and z from -0.15 to +0.25 m about the centre, the acceleration
   capped at 40 m/s², and holds of y and of the orientation.
 * ``"kinesthetic"``: ``[fx, fz]``, a person's force on the flange [N], clipped to ±150; the arm is
   in its compliant hand-guiding mode (:mod:`multiform.envs.compliant`): gravity and friction
@@ -54,7 +54,7 @@ Reset options (all optional):
   (positive towards +x), turning at ``omega0``; default ``U(-0.1, 0.1)`` and ``U(-0.3, 0.3)``.
   Or ``ball`` = ``[x, z]`` and ``ball_v`` = ``[vx, vz]`` relative to the anchor, anywhere the string
   reaches and no wall is (a ball placed in the cup, for instance).
-* ``x0``, ``z0`` [m, default 0]: the hand's start (|x0| ≤ 0.35, -0.15 ≤ z0 ≤ 0.2), the arm at rest in
+* ``x0``, ``z0`` [m, default 0]: the hand's start (|x0| ≤ 0.45, -0.15 ≤ z0 ≤ 0.25), the arm at rest in
   the posture that puts the flange there with the home orientation.
 
 The episode's toy is in ``env.params`` (a mentor must not read it; a person does not know it).
@@ -70,7 +70,7 @@ below or 0.4 m above the centre, y more than 0.25 m off, or tilted more than 1 r
 frame_skip``, the reward the sum over the skipped steps); multiform's own runs use 1.
 
 Reward and success (for Gymnasium tooling; multiform grades trials with the skill's judges): the
-reward is ``dt`` for every step that ends with the ball resting in the cup (centre within 0.045 m of
+reward is ``dt`` for every step that ends with the ball resting in the cup (centre within 0.04 m of
 the cup's axis, between the anchor and the rim, moving less than 0.5 m/s relative to the cup), so
 a return is the time caught in seconds; ``info["is_success"]`` is True once it has rested there for
 1 s without a break. ``info["scene"]`` has the string's true slack (``slack``, m) and whether the
@@ -368,7 +368,7 @@ class BallInCupEnv(gym.Env):
 
     # -- named views of the state
     def ball_resting_in_cup(self) -> bool:
-        """The ball's centre inside the cup (within 0.045 m of its axis, between anchor and rim) and
+        """The ball's centre inside the cup (within 0.04 m of its axis, between anchor and rim) and
         moving less than 0.5 m/s relative to it."""
         o = self._obs_list
         return (abs(o[_BX]) < CUP_HALF_WIDTH and CUP_FLOOR < o[_BZ] < CUP_RIM
