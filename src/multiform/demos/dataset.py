@@ -278,8 +278,8 @@ class Dataset:
     """A validated demonstration file, read fully into :class:`Episode` objects (``episodes``; their
     ``actions`` are the commands in the env's own units), with the file's attributes in ``meta``
     (``env_args`` as stored, ``observation_names``, ``command_names``, ``dt``, ``format_version``,
-    ``obs_dtype``, ``action_limits``, ``teaching``: ``"kinesthetic"`` or ``""``). ``skill``, ``env_name`` and ``env_kwargs`` name what recorded
-    it; iterating gives the episodes."""
+    ``obs_dtype``, ``action_limits``, ``teaching``: ``"kinesthetic"`` or ``""``). ``skill``,
+    ``env_name`` and ``env_kwargs`` name what recorded it; iterating gives the episodes."""
 
     def __init__(self, path: str | os.PathLike):
         self.path = Path(path)
