@@ -75,10 +75,10 @@ def replay_demo(path: str | os.PathLike, index: int = 0, every: int = 33) -> Rep
                            element="--demo")
     ep: Episode = ds.episodes[index]
     if ds.meta.get("teaching"):
-        raise InvalidInput(f"holds {ds.meta['teaching']} demonstrations: the mentor guided the arm, and its forces "
-                           "are not kept, so a demonstration does not replay from its recorded commands (the commands "
-                           "recovered from the arm's motion drive its servo, not the person's arm)", file=str(path),
-                           element=f"demo_{index}")
+        raise InvalidInput(f"holds {ds.meta['teaching']} demonstrations: the mentor guided the arm, and its "
+                           "forces are never recorded, so a demonstration does not replay from its recorded commands "
+                           "(the commands recovered from the arm's motion drive its servo, not the person's arm)",
+                           file=str(path), element=f"demo_{index}")
     env = make_env(ds.env_name, ds.env_kwargs, str(path), render_mode="rgb_array", shadows=False)
     obs, snaps = replay(env, ep, qpos_every=every)
     n = min(len(obs), ep.num_samples)
