@@ -21,10 +21,12 @@ Read off the labelled demonstrations through the net (:mod:`multiform.learn.view
 
 Clock variables (``dwell``, ``fires_*``, ``time``) follow the mentor's tags, not the robot's firings
 (a mentor's swing-up is one segment however long), so conditions reading them are compared through
-durations only. A switch condition on its place's clock alone (``dwell > 0.15``: a maneuver the mentor
-times, as a pull that lasts a moment) is held against the durations of the mentor's segments there:
-how long the mentor had been in the place at each successful switch (``hit``) and the clock along
-the segments where it held off (``loose``).
+durations only. A switch condition on its place's clock alone is a timed maneuver (``dwell > 0.15``: a
+pull that lasts a moment) where the mentor's own timing bears it out — it holds at most of the
+mentor's successful switches (how long the mentor had been in the place then) and at few of the
+states where the mentor held off (:data:`TIMED_HIT`, :data:`TIMED_LOOSE`) — and is held against those
+durations; otherwise it reads no state and is held as holding everywhere (``dwell > 0.1`` on a
+2 s swing-up switches at once).
 """
 
 from __future__ import annotations
@@ -43,6 +45,8 @@ from ..petri.guard_tree import variables
 from ..petri.net import APN
 
 MOMENT = 0.1          # s after a switch in which the mentor's switch counts as one moment
+TIMED_HIT = 0.5       # a clock-only switch is a timed maneuver if it holds at this share of the mentor's switches
+TIMED_LOOSE = 0.2     # ... and at no more than this share of the clock along the segments where the mentor held off
 
 
 @dataclass
@@ -187,7 +191,7 @@ def mentor_evidence(apn: APN, episodes: Sequence[Episode], min_switches: int = 3
             continue
         g = _state_part(t.condition.guard, state)
         timed = _duration_fit(apn, episodes, t.id, min_switches) if g is None else None
-        if timed is not None:
+        if timed is not None and timed.hit >= TIMED_HIT and timed.loose <= TIMED_LOOSE:
             ev.conditions[t.id] = timed
             continue
         # a condition that reads no state ("true", or clocks alone) holds wherever the mentor was: it
