@@ -355,7 +355,7 @@ class ArmPendulumEnv(gym.Env):
     def _impedance(self) -> list[float]:
         """The compliant mode's wrench at the flange: light damping and walls along x; y, z and the
         orientation locked at the workspace centre's."""
-        c, o, (cx, cy, cz) = self.compliance, self._obs_list, self.workspace_centre
+        c, o, (_, cy, cz) = self.compliance, self._obs_list, self.workspace_centre
         fx = -c.damping * o[_X + 1] + wall_force(o[_X], o[_X + 1], -self.x_limit, self.x_limit, c)
         vy, vz = o[_EY + 3], o[_EZ + 3]
         lock = [-c.lock_k * (o[_EY] - cy) - c.lock_d * vy, -c.lock_k * (o[_EZ] - cz) - c.lock_d * vz]

@@ -90,7 +90,7 @@ import numpy as np
 
 from .arm_model import FLANGE_SITE, arm_posture, arm_spec, mount
 from .compliant import DEFAULT_COMPLIANCE, Compliance, apply_hand_force, command_from_motion, compliant_torques, wall_force
-from .osc import TORQUE_LIMITS, WORKSPACE_CENTRE, PlanarGains, Workspace, planar_task_acceleration, torques_for
+from .osc import TORQUE_LIMITS, PlanarGains, Workspace, planar_task_acceleration, torques_for
 from .rendering import check_frame_skip, make_renderer, skip_frames
 
 OBSERVATION_NAMES: tuple[str, ...] = (

@@ -268,7 +268,7 @@ class BallInCupMentor:
         """Success or failure of every segment, judged from the recorded observations."""
         bx, bz, hx = episode.column("ball_x"), episode.column("ball_z"), episode.column("hand_x")
         e = swing_energy(bx, bz, episode.column("ball_vx"), episode.column("ball_vz"), self.length)
-        n, dt = episode.num_samples, episode.dt
+        dt = episode.dt
         inside = (np.abs(bx) < CUP_HALF_WIDTH) & (bz > CUP_FLOOR) & (bz < CUP_RIM)
         out = []
         segs = episode.segments()
