@@ -118,7 +118,7 @@ def main() -> int:
               f"mentor-graded at most {max(r['mentor_labelled_trials'] for r in rows)} (≤ {MAX_MENTOR})")
         rec.figure("to_5_in_a_row", f"ball_in_cup: median practice trials to the first {IN_A_ROW} successes in a row "
                    f"over job seeds {', '.join(str(r['seed']) for r in rows)} (Kober & Peters: under 100)",
-                   median, "trials", target=at_most(MAX_PRACTICE), values={"per_seed": [r["to_5_in_a_row"] for r in rows]})
+                   median, "trials", target=at_most(MAX_PRACTICE), values={"median": median, "per_seed": [r["to_5_in_a_row"] for r in rows]})
         rec.details["seeds"] = rows
         rec.write(args.results)
     return 0
