@@ -67,6 +67,12 @@ SECTIONS = (
             "and the evaluation backends.",
             ("bench_gp", "bench_condition", "bench_guards", "bench_closed_loop", "bench_arm_pendulum", "bench_ray",
              "bench_nunchaku")),
+    Section("ball_in_cup", "Ball-in-a-cup from kinesthetic demonstrations",
+            "`multiform demo ball_in_cup` from several job seeds: the final skill on 200 randomised evaluation "
+            "trials, the ablations on the first of them, the practice trials to the first 5 successes in a row "
+            "(Kober & Peters: consistent success after under a hundred trials on a real arm) and the job's wall "
+            "time.",
+            ("bench_ball_in_cup",)),
     Section("tasks", "The simulated tasks",
             "The nunchaku's simulation, its estimation from the wrist load and its scripted mentor.",
             ("bench_nunchaku",)),

@@ -34,17 +34,23 @@ DEMO_SEED_STRIDE = 100_000                    # demo i of record(seed=s) starts 
 
 def record(task: TaskLike, out: str | os.PathLike, demos: int | None = None, seed: int = 0, workers: int = 2,
            overwrite: bool = False, progress: Progress | None = None, ray: str | None = None,
-           mentor: str | None = None) -> Path:
+           mentor: str | None = None, kinesthetic: bool | None = None) -> Path:
     """Record ``demos`` demonstrations (default: the task's ``DEMOS``) of the task's scripted mentor
     (``mentor``: one of the task's ``MENTORS`` by name; default: its default mentor) into the demos
     file ``out`` (HDF5, see docs/demonstrations.md) on ``workers`` processes (or as Ray tasks at the
     cluster ``ray``); demo ``i`` starts from seed ``100000 * seed + i``. Every demo and label names
-    its mentor. The file's folder is made if missing. Returns the path."""
+    its mentor. ``kinesthetic``: the mentor guides the compliant arm by hand and the commands are
+    recovered from the arm's motion, the person's forces never kept (None: the task's
+    ``KINESTHETIC``). The file's folder is made if missing. Returns the path."""
     from .demos.dataset import write_dataset
+    from .teach.kinesthetic import KINESTHETIC, check_kinesthetic
     from .teach.record import record_many
     from .lock import check_writable, exclusive
     task = load_task(task)
     mentor_kwargs = task.mentor_kwargs(mentor)            # an unknown mentor is refused before anything
+    guided = bool(task.KINESTHETIC if kinesthetic is None else kinesthetic)
+    if guided:
+        check_kinesthetic(task.ENV_ID, task.DEMO_ENV_KWARGS, task.TASK)
     out = _new_output(out, overwrite, "file")
     if not out.parent.exists():
         out.parent.mkdir(parents=True)
@@ -52,8 +58,9 @@ def record(task: TaskLike, out: str | os.PathLike, demos: int | None = None, see
     n = task.DEMOS if demos is None else int(demos)
     with exclusive(out):
         eps = record_many(task.spec or task, [seed * DEMO_SEED_STRIDE + i for i in range(n)], task.DEMO_ENV_KWARGS,
-                          mentor_kwargs=mentor_kwargs, workers=workers, progress=progress, ray=ray)
-        return write_dataset(out, eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS)
+                          mentor_kwargs=mentor_kwargs, workers=workers, progress=progress, ray=ray, kinesthetic=guided)
+        return write_dataset(out, eps, task.SKILL, task.ENV_ID, task.DEMO_ENV_KWARGS,
+                             teaching=KINESTHETIC if guided else "")
 
 
 def merge_demos(demos: list[str | os.PathLike], out: str | os.PathLike, mentors: Mapping[str, str] | None = None,

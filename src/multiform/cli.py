@@ -199,11 +199,13 @@ def cmd_record(args: argparse.Namespace) -> int:
     n = task.DEMOS if args.demos is None else args.demos
     with _progress(f"recording {task.TASK} demos") as progress:
         out = api.record(task, args.out, demos=n, seed=args.seed, workers=args.workers, overwrite=args.overwrite,
-                         progress=progress, ray=args.ray, mentor=args.mentor)
+                         progress=progress, ray=args.ray, mentor=args.mentor, kinesthetic=args.kinesthetic)
     from .demos.dataset import read_dataset
-    eps = read_dataset(out).episodes
+    ds = read_dataset(out)
+    eps = ds.episodes
     ok = sum(e.outcome == "success" for e in eps)
-    print(f"wrote {out}: {len(eps)} demos by {eps[0].mentor or 'an unnamed mentor'}, who succeeded in {ok} "
+    how = " (guiding the arm by hand)" if ds.meta.get("teaching") else ""
+    print(f"wrote {out}: {len(eps)} demos by {eps[0].mentor or 'an unnamed mentor'}{how}, who succeeded in {ok} "
           f"({100 * ok / len(eps):.0f} %)")
     return 0
 
@@ -460,7 +462,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
                     practice_max_trials=args.max_trials, workers=args.workers, seed=args.seed,
                     videos=not args.no_video, inverse_model=not args.reference_controller,
                     learn=args.learn_from_practice, practice_budget=args.practice_budget, ray=args.ray,
-                    mentors=mentors, fusion=args.fusion, practice=args.practice)
+                    mentors=mentors, fusion=args.fusion, practice=args.practice,
+                    kinesthetic=args.kinesthetic)
     m = Job(args.task, args.out, cfg, view=args.view).run()
     sr = m["success_rate"]
     print(f"success rate {100 * sr['rate']:.1f} % ({sr['successes']}/{sr['trials']}; 95 % CI "

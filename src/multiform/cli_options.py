@@ -15,7 +15,7 @@ EXIT_BAD_INPUT = 2
 MAX_SEED = 2**31 - 1
 Handlers = Mapping[str, Callable[[argparse.Namespace], int]]
 
-TASK_HELP = ("a task: bundled (pendulum, nunchaku), installed (entry point group multiform.tasks), "
+TASK_HELP = ("a task: bundled (pendulum, nunchaku, ball_in_cup), installed (entry point group multiform.tasks), "
              "package.module:NAME or path/to/file.py:NAME")
 
 def _count(low: int, high: int):
@@ -157,7 +157,7 @@ def build_parser(handlers: Handlers) -> argparse.ArgumentParser:
                     "(GP control laws) and evaluation (SVM judges); the robot practises and repairs "
                     "the definition itself.",
         epilog="Start with `multiform demo pendulum --out runs/pendulum`. SKILL is a skill file "
-               "or the name of a bundled skill (pendulum, pendulum_strict, nunchaku). Exit status: 0 ok, "
+               "or the name of a bundled skill (pendulum, pendulum_strict, nunchaku, ball_in_cup). Exit status: 0 ok, "
                "2 the input is wrong, 66 an input file is missing, 1 an internal error.")
     parser.add_argument("--version", action="version", version=f"multiform {_version()}")
     parser.add_argument("--debug", action="store_true", help="show the traceback of an internal error")
@@ -224,7 +224,7 @@ def _add_demonstration_commands(sub: argparse._SubParsersAction, h: Handlers) ->
     p = sub.add_parser("record", help="record scripted-mentor demonstrations of a task (HDF5)")
     p.add_argument("task", metavar="TASK", help=TASK_HELP)
     p.add_argument("--demos", type=_count(1, 1000), default=_default(api.record, "demos"),
-                   help="number of demonstrations (default: the task's DEMOS, 10 for pendulum and nunchaku)")
+                   help="number of demonstrations (default: the task's DEMOS, 10 for each bundled task)")
     p.add_argument("--out", "-o", required=True, help="output .h5 file")
     _add_overwrite(p, "--out")
     _add_workers(p, _default(api.record, "workers"))
@@ -233,6 +233,7 @@ def _add_demonstration_commands(sub: argparse._SubParsersAction, h: Handlers) ->
     p.add_argument("--mentor", default=None, metavar="NAME",
                    help="which of the task's scripted mentors demonstrates (pendulum and nunchaku: expert, average, "
                         "poor); its name is stored with every demo and label (default: the task's default mentor)")
+    _add_kinesthetic(p)
     _add_ray(p)
     p.set_defaults(func=h["record"])
 
@@ -429,7 +430,7 @@ def _add_run_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
     p.add_argument("task", metavar="TASK", help=TASK_HELP)
     p.add_argument("--out", "-o", required=True, help="run folder (resumed if it exists)")
     p.add_argument("--demos", type=_count(1, 1000), default=None,
-                   help="demonstrations (default: the task's DEMOS, 10 for pendulum and nunchaku)")
+                   help="demonstrations (default: the task's DEMOS, 10 for each bundled task)")
     p.add_argument("--eval-trials", type=_count(1, 1_000_000), default=JOB_DEFAULTS["eval_trials"],
                    help="evaluation trials of the final skill")
     p.add_argument("--ablation-trials", type=_count(0, 1_000_000), default=JOB_DEFAULTS["ablation_trials"],
@@ -457,9 +458,17 @@ def _add_run_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
                         'multiform.adapt.practice), e.g. \'{"deliberate": true, "max_robot_seconds": 900}\' '
                         "(default: the task's)")
     _add_fusion(p)
+    _add_kinesthetic(p)
     _add_view(p, "the report's picked trials (saved in RUN/view/)")
     _add_ray(p)
     p.set_defaults(func=h["demo"])
+
+
+def _add_kinesthetic(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--kinesthetic", action=argparse.BooleanOptionalAction, default=None,
+                   help="the mentor teaches by guiding the compliant arm by hand: the commands are recovered from the "
+                        "arm's motion and the person's forces are never kept (default: the task's KINESTHETIC: on for "
+                        "ball_in_cup, off for pendulum; nunchaku has no hand-guiding mode)")
 
 
 def _add_output_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:

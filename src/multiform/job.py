@@ -28,6 +28,7 @@ from tqdm import tqdm
 from .evaluation import Evaluator, Variant
 from .demos.dataset import read_dataset, write_dataset
 from .demos.episode import Episode
+from .teach.kinesthetic import KINESTHETIC, check_kinesthetic
 from .teach.record import demo_push, record_by_mentors, record_many
 from .errors import InvalidInput, Problem
 from .io import write_json
@@ -67,6 +68,8 @@ class JobConfig:
     fusion: bool = True              # with several mentors, weigh them by estimated trust; False: pool them
     practice: dict[str, Any] = field(default_factory=dict)   # PracticeConfig fields over every scenario's own,
                                      # e.g. {"deliberate": True, "max_robot_seconds": 900}
+    kinesthetic: bool | None = None  # the mentor guides the arm by hand (True) or sends commands (False);
+                                     # None: the task's KINESTHETIC
 
 
 class Job:
@@ -79,6 +82,8 @@ class Job:
         self.cfg = config or JobConfig()
         if self.cfg.demos is None:
             self.cfg = replace(self.cfg, demos=int(sum(n for _, n in self.cfg.mentors) or self.task.DEMOS))
+        if self.cfg.kinesthetic is None:
+            self.cfg = replace(self.cfg, kinesthetic=bool(getattr(self.task, "KINESTHETIC", False)))
         if self.cfg.mentors:
             for name, _ in self.cfg.mentors:
                 self.task.mentor_kwargs(name)             # an unknown mentor is refused before anything runs
@@ -116,29 +121,38 @@ class Job:
         path = self.out / "demos.h5"
         seeds = [self.cfg.seed * 100_000 + i for i in range(self.cfg.demos)]
         if path.exists():
-            try:        # reused only if it is the set this job would record (same seeds, start options, pushes)
-                old = read_dataset(path).episodes
+            try:        # reused only if it is the set this job would record (same seeds, start options, pushes,
+                ds = read_dataset(path)     # way of teaching)
+                old, teaching = ds.episodes, ds.meta.get("teaching", "")
             except InvalidInput:
-                old = []
-            if len(old) == len(seeds) and all(self._recorded_as_planned(e, s, m)
-                                              for e, s, m in zip(old, seeds, self._planned_mentors())):
+                old, teaching = [], ""
+            if len(old) == len(seeds) and teaching == self._teaching and all(
+                    self._recorded_as_planned(e, s, m) for e, s, m in zip(old, seeds, self._planned_mentors())):
                 self.log(f"  reusing {path}")
                 return path
+        guided = bool(self.cfg.kinesthetic)
+        if guided:
+            check_kinesthetic(self.task.ENV_ID, self.task.DEMO_ENV_KWARGS, self.task.TASK)
         with self._bar(len(seeds), "recording demos", unit="demo") as bar:
             if self.cfg.mentors:
                 eps = record_by_mentors(self._worker_task, seeds, self.cfg.mentors, self.task.DEMO_ENV_KWARGS,
                                         workers=self.cfg.workers, progress=lambda i, n: bar.update(1),
-                                        start_method=self.cfg.start_method, ray=self.cfg.ray)
+                                        start_method=self.cfg.start_method, ray=self.cfg.ray, kinesthetic=guided)
             else:
                 eps = record_many(self._worker_task, seeds, self.task.DEMO_ENV_KWARGS, workers=self.cfg.workers,
                                   progress=lambda i, n: bar.update(1), start_method=self.cfg.start_method,
-                                  ray=self.cfg.ray)
-        write_dataset(path, eps, self.task.SKILL, self.task.ENV_ID, self.task.DEMO_ENV_KWARGS)
+                                  ray=self.cfg.ray, kinesthetic=guided)
+        write_dataset(path, eps, self.task.SKILL, self.task.ENV_ID, self.task.DEMO_ENV_KWARGS, teaching=self._teaching)
         for who in dict.fromkeys(e.mentor for e in eps):
             mine = [e for e in eps if e.mentor == who]
             ok = sum(e.outcome == "success" for e in mine)
             self.log(f"  {len(mine)} demos by {who or 'the mentor'}, who succeeded in {ok} ({100 * ok / len(mine):.0f} %)")
         return path
+
+    @property
+    def _teaching(self) -> str:
+        """How the mentor teaches in this job: ``"kinesthetic"`` (guiding the arm), else ``""``."""
+        return KINESTHETIC if self.cfg.kinesthetic else ""
 
     def _planned_mentors(self) -> list[str | None]:
         """The name of the mentor each demo is to be recorded by (None: the task's default)."""

@@ -7,6 +7,7 @@ from __future__ import annotations
 ENVS = {   # id -> (entry point, max_episode_steps: a skill's default max_duration at 1 ms a step)
     "multiform/ArmPendulum-v0": ("multiform.envs.arm_pendulum:ArmPendulumEnv", 60_000),
     "multiform/Nunchaku-v0": ("multiform.envs.nunchaku:NunchakuEnv", 15_000),
+    "multiform/BallInCup-v0": ("multiform.envs.ball_in_cup:BallInCupEnv", 20_000),
 }
 
 SERVOS = {   # name -> the function that builds it (see multiform.learn.servos)

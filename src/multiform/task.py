@@ -5,14 +5,14 @@ The method (:mod:`multiform.petri`, :mod:`~multiform.learn`, :mod:`~multiform.ad
 entries. Everything else — which env, how trials start, the experimenter's disturbances, the
 physical success check that compares variants alike, the practice scenarios, a scripted mentor and
 the inverse model's trainer — is a *task*: a subclass of :class:`Task` (or any object or module
-with the same attributes). The bundled ``pendulum`` and ``nunchaku`` are two tasks.
+with the same attributes). The bundled ``pendulum``, ``nunchaku`` and ``ball_in_cup`` are three tasks.
 
 Only ``TASK``, ``SKILL``, ``ENV_ID`` and :meth:`Task.physical_success` are required; every other
 part has a default here, and practice defaults to the method's own settings
 (:class:`~multiform.adapt.practice.PracticeConfig`): a task holds only what is specific to it. A
 task is found by :func:`load_task` from
 
-* a bundled name (``pendulum``, ``nunchaku``),
+* a bundled name (``pendulum``, ``nunchaku``, ``ball_in_cup``),
 * an installed entry point of the group ``multiform.tasks`` (``name = "package.module:NAME"``),
 * ``package.module:NAME`` or ``path/to/file.py:NAME`` (NAME a :class:`Task` subclass or instance),
 
@@ -33,7 +33,8 @@ from typing import Any
 from .errors import InvalidInput, MissingInput
 from .runtime.perturb import PushInPlace, TrialSpec
 
-BUNDLED = {"pendulum": "multiform.tasks.pendulum:Pendulum", "nunchaku": "multiform.tasks.nunchaku:Nunchaku"}
+BUNDLED = {"pendulum": "multiform.tasks.pendulum:Pendulum", "nunchaku": "multiform.tasks.nunchaku:Nunchaku",
+           "ball_in_cup": "multiform.tasks.ball_in_cup:BallInCup"}
 ENTRY_POINT_GROUP = "multiform.tasks"
 
 
@@ -96,6 +97,11 @@ class Task:
     :class:`multiform.NamedEnv` in the registered factory); the env must name its observation and
     command entries (``observation_names``, ``command_names``) and step ``dt`` seconds.
 
+    ``DEMO_ENV_KWARGS`` make the env the demonstrations' commands are meant for; with
+    ``KINESTHETIC`` the mentor guides the arm instead (the same env in its hand-guiding mode,
+    ``action_mode="kinesthetic"``) and the commands are recovered from the arm's motion
+    (:mod:`multiform.teach.kinesthetic`).
+
     Action modes (the skill's laws output end-effector commands, the ``commands`` of its skill file):
     *direct* — the env's action is that command (``robot_env_kwargs(False)``, the default), or
     *inverse model* — the env takes joint torques and a learned inverse model turns the command
@@ -107,6 +113,8 @@ class Task:
     ENV_ID: str = ""                            # the Gymnasium env id
     DEMO_ENV_KWARGS: dict[str, Any] = {}        # gymnasium.make arguments while the mentor demonstrates
     DEMOS: int = 10                             # the main job's demonstrations
+    KINESTHETIC: bool = False                   # the mentor teaches by guiding the arm by hand (False: it sends
+                                                # commands, at a joystick); --kinesthetic overrides it
     DESCRIPTION: str = ""
     TARGET_SUCCESS_RATE: float = 0.9
     EVALUATION_SEEDS: int = 50_000_000          # evaluation trial i of job seed s: seed EVALUATION_SEEDS + 100000 s + i

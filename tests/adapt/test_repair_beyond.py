@@ -12,7 +12,7 @@ import yaml
 
 from multiform.adapt.compare import compare_with_mentor, demonstration_findings
 from multiform.adapt.diagnosis import Diagnosis, diagnose
-from multiform.adapt.mentor import mentor_evidence
+from multiform.adapt.mentor import TIMED_LOOSE, mentor_evidence
 from multiform.adapt.practice import Practice, PracticeConfig, PracticeState, RevisionRecord, TrialRecord, Trying
 from multiform.adapt.repair import candidates, repair
 from multiform.demos.episode import Episode, SegmentLabel
@@ -327,6 +327,18 @@ def test_a_practice_state_saved_with_lambda_exhausted_still_loads(tmp_path):
 
 
 # -- before the first trial: what the demonstrations alone show --------------------------------------
+
+def test_a_switch_on_a_clock_the_mentors_timing_bears_out_is_a_timed_maneuver():
+    """t1 on its place's clock alone, a little before the mentor switched (its swing-ups last 1.9 s):
+    held against the durations of the mentor's segments, it holds at every switch and where the
+    mentor held off only near the end of its swing-ups, so nothing is found before a trial; a clock
+    far earlier than the mentor's switches still switches at once (the test below)."""
+    apn = edited(t1={"condition": "dwell > 1.5"})
+    ev = mentor_evidence(apn, EPISODES)
+    fit = ev.conditions["t1"]
+    assert fit.switches == 4 and fit.hit == 1.0 and 0.0 < fit.loose < TIMED_LOOSE and fit.negatives > 0
+    assert not [f for f in demonstration_findings(apn, ev) if f.transition == "t1"]
+
 
 @pytest.mark.parametrize("t1", ["true", "dwell > 0.1", "abs(theta) >= 0"])
 def test_a_switch_condition_that_holds_wherever_the_mentor_held_off_is_found_before_any_trial(t1):

@@ -10,6 +10,7 @@ import pytest
 pytest.importorskip("rerun")
 
 from multiform.envs.arm_pendulum import ArmPendulumEnv  # noqa: E402
+from multiform.envs.ball_in_cup import BallInCupEnv  # noqa: E402
 from multiform.envs.nunchaku import NunchakuEnv  # noqa: E402
 from multiform.view import scene  # noqa: E402
 from multiform.view.stream import Recording, read_recording  # noqa: E402
@@ -22,7 +23,7 @@ def _rot(xyzw):
     return m.reshape(3, 3)
 
 
-@pytest.mark.parametrize("make", [ArmPendulumEnv, NunchakuEnv])
+@pytest.mark.parametrize("make", [ArmPendulumEnv, NunchakuEnv, BallInCupEnv])
 def test_logged_poses_put_every_geom_where_mujoco_has_it(make, tmp_path):
     env = make()
     env.reset(seed=1)
@@ -54,4 +55,35 @@ def test_logged_poses_put_every_geom_where_mujoco_has_it(make, tmp_path):
             assert np.allclose(bq @ gq, d.geom_xmat[g].reshape(3, 3), atol=1e-5), key
             checked += 1
     assert checked >= 5
+    env.close()
+
+
+def test_the_string_is_drawn_from_the_cup_to_the_ball(tmp_path):
+    """The ball-in-a-cup's string (a tendon, no body of its own) is in the view: a line from its
+    anchor under the cup to the ball's centre, at each logged tick; the ball is a body like any other."""
+    env = BallInCupEnv()
+    base = env
+    env.reset(seed=2, options={"phi0": 0.6, "omega0": 0.0})
+    m, d = base.model, base.data
+    tendons = scene.scene_tendons(m)
+    assert [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_TENDON, t) for t in tendons] == ["toy/string"]
+    assert "scene/toy/ball" in scene.body_paths(m, scene.scene_bodies(m))
+    ticks, paths, balls = [], [], []
+    for k in range(300):
+        env.step(np.zeros(2))
+        if k % 100 == 0:
+            ticks.append(k)
+            paths.append(scene.tendon_paths(d, tendons))
+            balls.append(d.xpos[m.body("toy/ball").id].copy())
+    out = Recording(tmp_path / "string.rrd")
+    scene.log_tendons(out.rec, m, tendons, ticks, 0.001, paths)
+    out.close()
+    ent = read_recording(tmp_path / "string.rrd")["/scene/toy/string"]
+    strips = [v for v in ent["LineStrips3D:strips"] if v is not None]
+    assert len(strips) == len(ticks)
+    for strip, ball in zip(strips, balls):
+        pts = np.array(strip[0])
+        assert pts.shape == (2, 3)
+        assert np.allclose(pts[1], ball, atol=1e-9)
+        assert abs(np.linalg.norm(pts[1] - pts[0]) - env.params["length"]) < 2e-3     # taut
     env.close()

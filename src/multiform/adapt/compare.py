@@ -49,6 +49,9 @@ LOOSE = 0.05            # one holding at more of the mentor's non-switch states 
 SLACK = 2.0             # a limit moved to the mentor's longest successful stay leaves this much room: the robot's
                         # maneuvers run slower than the mentor's (nunchaku swing-up, 1.25: 87/100 against the sound 97/100)
 LAW_RATIO = 0.7         # another law explains a transition's segments when its error is under this share
+EXPLAINS = 0.7          # ... and under this held-out NRMSE itself (half the commands' variance or more): a law
+                        # near the mean command (NRMSE ~1) explains nothing, even beside one that extrapolates
+                        # worse (ball-in-cup: hold at 0.98 beside pump's 1.74 on the mentor's repeated pumping)
 BLIND = 0.9             # a condition holding at this much of the mentor's non-switch states switches at once
 MIN_USES = 3            # the mentor's successful uses needed to judge a transition's law or put one back
 _LT = (operator.lt, operator.le)
@@ -123,7 +126,7 @@ def demonstration_findings(apn: APN, mentor: MentorEvidence) -> list[Finding]:
 
 def _better_law(apn: APN, tid: str, mentor: MentorEvidence) -> tuple[str, dict[str, float]] | None:
     """The law that explains the mentor's successful segments of ``tid`` far better (held-out NRMSE
-    under :data:`LAW_RATIO` of its own law's, and under 1) than the law it runs, with every law's
+    under :data:`LAW_RATIO` of its own law's, and under :data:`EXPLAINS`) than the law it runs, with every law's
     error; None if its own law is about as good, or there is too little to tell."""
     t = apn.transition(tid)
     if not t.law or mentor.took_success.get(tid, 0) < MIN_USES:
@@ -134,7 +137,7 @@ def _better_law(apn: APN, tid: str, mentor: MentorEvidence) -> tuple[str, dict[s
     if own is None or not others:
         return None
     best = min(others, key=others.get)
-    return None if others[best] >= LAW_RATIO * own or others[best] >= 1.0 else (best, errors)
+    return None if others[best] >= LAW_RATIO * own or others[best] >= EXPLAINS else (best, errors)
 
 
 # -- facts about one trial ----------------------------------------------------------------------------

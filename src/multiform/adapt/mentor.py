@@ -21,7 +21,12 @@ Read off the labelled demonstrations through the net (:mod:`multiform.learn.view
 
 Clock variables (``dwell``, ``fires_*``, ``time``) follow the mentor's tags, not the robot's firings
 (a mentor's swing-up is one segment however long), so conditions reading them are compared through
-durations only.
+durations only. A switch condition on its place's clock alone is a timed maneuver (``dwell > 0.15``: a
+pull that lasts a moment) where the mentor's own timing bears it out — it holds at most of the
+mentor's successful switches (how long the mentor had been in the place then) and at few of the
+states where the mentor held off (:data:`TIMED_HIT`, :data:`TIMED_LOOSE`) — and is held against those
+durations; otherwise it reads no state and is held as holding everywhere (``dwell > 0.1`` on a
+2 s swing-up switches at once).
 """
 
 from __future__ import annotations
@@ -40,6 +45,8 @@ from ..petri.guard_tree import variables
 from ..petri.net import APN
 
 MOMENT = 0.1          # s after a switch in which the mentor's switch counts as one moment
+TIMED_HIT = 0.5       # a clock-only switch is a timed maneuver if it holds at this share of the mentor's switches
+TIMED_LOOSE = 0.2     # ... and at no more than this share of the clock along the segments where the mentor held off
 
 
 @dataclass
@@ -183,6 +190,10 @@ def mentor_evidence(apn: APN, episodes: Sequence[Episode], min_switches: int = 3
         if ev.took_success.get(t.id, 0) < min_switches:
             continue
         g = _state_part(t.condition.guard, state)
+        timed = _duration_fit(apn, episodes, t.id, min_switches) if g is None else None
+        if timed is not None and timed.hit >= TIMED_HIT and timed.loose <= TIMED_LOOSE:
+            ev.conditions[t.id] = timed
+            continue
         # a condition that reads no state ("true", or clocks alone) holds wherever the mentor was: it
         # is held against the mentor's switches as holding everywhere, read off the place's judged
         # variables (or the state's)
@@ -203,6 +214,35 @@ def mentor_evidence(apn: APN, episodes: Sequence[Episode], min_switches: int = 3
         loose = float((g.evaluate_arrays(cols(neg)) > 0).mean()) if len(neg) else 0.0
         ev.conditions[t.id] = ConditionFit(len(moments), hit, loose, int(len(neg)))
     return ev
+
+
+def _duration_fit(apn: APN, episodes: Sequence[Episode], tid: str, min_switches: int) -> ConditionFit | None:
+    """:class:`ConditionFit` of a switch condition that reads only its input place's clock
+    (``dwell``), through durations: the clock at each of the mentor's successful switches (the time
+    since the segment before it began in that place) and along the mentor's segments there far from
+    any switch (:func:`~multiform.learn.views.switch_data`'s negatives). None for any other condition,
+    or with fewer than ``min_switches`` switches."""
+    t = apn.transition(tid)
+    g = t.condition.guard
+    if g is None or set(g.variables) != {"dwell"} or len(t.inputs) != 1:
+        return None
+    clock = f"dwell_{next(iter(t.inputs))}"
+    place = next(iter(t.inputs))
+    at_switch = []
+    for ep in episodes:
+        ok = success_mask(ep)
+        D = value_matrix(apn, ep, [clock])[:, 0]
+        segs = ep.segments()
+        for i, (s, _, tag) in enumerate(segs):
+            if tag == tid and ok[s] and i and segs[i - 1][2] in apn.transition_ids \
+                    and place in apn.transition(segs[i - 1][2]).outputs:
+                at_switch.append(D[s - 1] + ep.dt)
+    if len(at_switch) < min_switches:
+        return None
+    neg = switch_data(apn, episodes, tid, [clock]).negatives[:, 0]
+    hit = float(np.mean(g.evaluate_arrays({"dwell": np.asarray(at_switch)}) > 0))
+    loose = float(np.mean(g.evaluate_arrays({"dwell": neg}) > 0)) if len(neg) else 0.0
+    return ConditionFit(len(at_switch), hit, loose, int(len(neg)))
 
 
 def _missing(apn: APN, episodes: Sequence[Episode], min_uses: int) -> dict[str, Missing]:

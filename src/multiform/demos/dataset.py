@@ -5,7 +5,9 @@ Layout (format version 3; robomimic's ``SequenceDataset`` and ``get_dataset_info
     /data                      attrs: format_version, skill, env_args (JSON: env_name, type, env_kwargs),
                                       observation_names (JSON), command_names (JSON), dt, total,
                                       transition_names (JSON: the tag codes' names),
-                                      action_low, action_high (n_cmd,) when the actions are normalised
+                                      action_low, action_high (n_cmd,) when the actions are normalised,
+                                      teaching (optional): "kinesthetic" when the mentor guided the arm by
+                                      hand and the commands were recovered from the arm's motion
     /data/demo_0               attrs: num_samples, seed, reset_options (JSON), outcome, mentor (who
                                       demonstrated it; "" if unknown)
         obs/<name>             (T, 1) float32 (float64 if so written), one dataset per observation entry
@@ -74,7 +76,7 @@ LABEL_DTYPE = np.dtype([("start", "<i8"), ("end", "<i8"), ("transition", "S64"),
 
 def write_dataset(path: str | os.PathLike, episodes: Sequence[Episode], skill: str, env_name: str,
                   env_kwargs: dict[str, Any] | None = None, mentor: str = "",
-                  obs_dtype: str = "float32", split_seed: int = 0) -> Path:
+                  obs_dtype: str = "float32", split_seed: int = 0, teaching: str = "") -> Path:
     """Write ``episodes`` to ``path`` (temporary file + rename: readers never see half a file).
 
     Observations are stored as float32 by default, as robomimic's and LeRobot's low-dimensional
@@ -82,7 +84,9 @@ def write_dataset(path: str | os.PathLike, episodes: Sequence[Episode], skill: s
     the file is about half the size: float64 physics data barely compresses); ``obs_dtype="float64"``
     keeps them exact. Commands are always exact. ``split_seed`` draws the ``mask/train`` /
     ``mask/valid`` split. The actions are normalised when the env offers it (module docstring).
-    Each demo's mentor is its episode's ``mentor``, else ``mentor``; every mentor gets a filter key."""
+    Each demo's mentor is its episode's ``mentor``, else ``mentor``; every mentor gets a filter key.
+    ``teaching`` (``"kinesthetic"``) says the mentor guided the arm: the commands are those recovered
+    from its motion, for the env ``env_kwargs`` make."""
     if obs_dtype not in ("float64", "float32"):
         raise InvalidInput(f"obs_dtype must be float64 or float32, got {obs_dtype!r}", file=str(path))
     if not episodes:
@@ -113,6 +117,8 @@ def write_dataset(path: str | os.PathLike, episodes: Sequence[Episode], skill: s
             if unit is not None:
                 data.attrs["action_low"], data.attrs["action_high"] = unit
             data.attrs["transition_names"] = json.dumps(tag_names)
+            if teaching:
+                data.attrs["teaching"] = str(teaching)
             names: dict[str, list[str]] = {"success": [], "failure": []}
             for i, ep in enumerate(episodes):
                 _write_demo(data.create_group(f"demo_{i}"), ep, unit, code, code_dtype, np.dtype(obs_dtype),
@@ -272,8 +278,8 @@ class Dataset:
     """A validated demonstration file, read fully into :class:`Episode` objects (``episodes``; their
     ``actions`` are the commands in the env's own units), with the file's attributes in ``meta``
     (``env_args`` as stored, ``observation_names``, ``command_names``, ``dt``, ``format_version``,
-    ``obs_dtype``, ``action_limits``). ``skill``, ``env_name`` and ``env_kwargs`` name what recorded
-    it; iterating gives the episodes."""
+    ``obs_dtype``, ``action_limits``, ``teaching``: ``"kinesthetic"`` or ``""``). ``skill``,
+    ``env_name`` and ``env_kwargs`` name what recorded it; iterating gives the episodes."""
 
     def __init__(self, path: str | os.PathLike):
         self.path = Path(path)
@@ -314,6 +320,7 @@ class Dataset:
         labels = [lab for ep in eps for lab in ep.labels]
         return {
             "file": str(self.path), "skill": self.skill, "env": self.env_name, "demos": len(eps),
+            "teaching": self.meta.get("teaching") or "commands",
             "success": sum(ep.outcome == "success" for ep in eps),
             "success_fraction": float(np.mean([ep.outcome == "success" for ep in eps])) if eps else 0.0,
             "duration_s": {"total": float(durations.sum()), "mean": float(durations.mean()),
@@ -362,7 +369,8 @@ def _read(path: Path) -> tuple[list[Episode], dict[str, Any]]:
         dt = float(data.attrs["dt"])
         if not np.isfinite(dt) or dt <= 0:
             raise InvalidInput(f"dt must be a positive number, got {dt}", file=file, element="data")
-        meta.update(observation_names=obs_names, command_names=cmd_names, dt=dt, format_version=version)
+        meta.update(observation_names=obs_names, command_names=cmd_names, dt=dt, format_version=version,
+                    teaching=_str(data.attrs.get("teaching", "")))
         scale, tag_names, unit = np.ones(len(cmd_names)), None, None
         if version == 2:
             scale, tag_names = _v2_attrs(data, len(cmd_names), file)

@@ -10,6 +10,8 @@ nothing. Either import this package, or let Gymnasium import it from the id::
 * ``multiform/ArmPendulum-v0`` — a 6-axis arm with the AUBO i5's kinematics carrying an inverted
   pendulum (:mod:`multiform.envs.arm_pendulum`).
 * ``multiform/Nunchaku-v0`` — a hand that flips a nunchaku (:mod:`multiform.envs.nunchaku`).
+* ``multiform/BallInCup-v0`` — the same arm holding a cup with a ball on a string
+  (:mod:`multiform.envs.ball_in_cup`).
 
 Every env here exposes ``observation_names`` (one name per observation entry) and
 ``command_names`` (one name per entry of the end-effector command), so that a skill file can name
@@ -17,7 +19,7 @@ its state variables and the library never needs to know which env it drives.
 
 Importing this package picks MuJoCo's offscreen renderer (:mod:`multiform.envs.rendering`); the arm's
 servo for its inverse model (:mod:`multiform.envs.arm_servo`) is named in :mod:`multiform.registry`.
-Both envs step 1 ms of physics per call, so ``render_fps`` is 1000 (a video of every frame plays in
+All step 1 ms of physics per call, so ``render_fps`` is 1000 (a video of every frame plays in
 real time), unless ``frame_skip`` makes each step longer (``render_fps`` ``1000 / frame_skip``:
 what keeps Gymnasium's ``RecordVideo`` to a few hundred MB, see
 :mod:`multiform.envs.arm_pendulum`), and are registered with a time limit (``max_episode_steps``,

@@ -13,6 +13,12 @@ Actions (``action_mode``):
   torques: a 30 rad/s velocity servo with a soft wall at |x| = 0.35 m, holds of y, z and the
   orientation, computed-torque inverse dynamics, torque saturation.
 * ``"torque"``: six joint torques [N m], clipped to ±150 (joints 1-3) and ±30 (joints 4-6).
+* ``"kinesthetic"``: ``[f_x]``, a person's force on the flange along the swing axis [N], clipped to
+  ±150; the arm is in its compliant hand-guiding mode (:mod:`multiform.envs.compliant`: gravity and
+  friction compensated, a light damping along x, virtual walls at the servo's stroke, y, z and the
+  orientation locked). :meth:`ArmPendulumEnv.command_from_motion` recovers the ``[v_cmd]`` under
+  which the ``"ee"`` servo reproduces the guided motion (kinesthetic teaching,
+  :mod:`multiform.teach.kinesthetic`).
 
 Observations (``observation_names``, float64, the robot's own sensors: joint encoders and the
 pendulum's hinge encoder, with forward kinematics):
@@ -83,7 +89,8 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
-from .arm_model import load_model
+from .arm_model import arm_posture, load_model
+from .compliant import DEFAULT_COMPLIANCE, Compliance, apply_hand_force, command_from_motion, compliant_torques, wall_force
 from .osc import DEFAULT_GAINS, OBSERVATION_NAMES, TORQUE_LIMITS, Gains, Workspace, task_acceleration_list, torques_for
 from .rendering import check_frame_skip, make_renderer, skip_frames
 
@@ -126,8 +133,8 @@ def equivalent_length(length: float, mass: float = 1.0) -> float:
 class ArmPendulumEnv(gym.Env):
     """A 6-axis arm carrying a pendulum on its flange (see the module docstring).
 
-    ``action_mode`` is ``"ee"`` or ``"torque"``; ``gains`` the reference controller's
-    (:class:`multiform.envs.osc.Gains`); ``width``/``height``/``camera`` the ``rgb_array`` frames
+    ``action_mode`` is ``"ee"``, ``"torque"`` or ``"kinesthetic"``; ``gains`` the reference controller's
+    (:class:`multiform.envs.osc.Gains`), ``compliance`` the hand-guiding mode's; ``width``/``height``/``camera`` the ``rgb_array`` frames
     (cameras ``"front"`` and ``"side"``); ``shadows`` False renders without them (on a CPU renderer
     they are over half a frame's cost: 37 against 16 ms at 480×360).
     """
@@ -135,18 +142,21 @@ class ArmPendulumEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 1000}       # one frame per step: 1000 / frame_skip
     observation_names = OBSERVATION_NAMES
     command_names = COMMAND_NAMES
+    guided_velocity_names = ("xdot",)     # the hand velocity the command is, for a guiding hand
+    action_modes = ("ee", "torque", "kinesthetic")
 
     def __init__(self, render_mode: str | None = None, action_mode: str = "ee", gains: Gains | None = None,
                  width: int = 480, height: int = 360, camera: str = "front", shadows: bool = True,
-                 normalize_actions: bool = False, frame_skip: int = 1):
+                 normalize_actions: bool = False, frame_skip: int = 1, compliance: Compliance | None = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None")
         self.frame_skip = check_frame_skip(frame_skip)
-        if action_mode not in ("ee", "torque"):
-            raise ValueError(f"action_mode must be 'ee' or 'torque', not {action_mode!r}")
+        if action_mode not in self.action_modes:
+            raise ValueError(f"action_mode must be one of {self.action_modes}, not {action_mode!r}")
         self.render_mode = render_mode
         self.action_mode = action_mode
         self.gains = gains if gains is not None else DEFAULT_GAINS
+        self.compliance = compliance if compliance is not None else DEFAULT_COMPLIANCE
         self.width, self.height, self.camera = int(width), int(height), camera
         self.shadows = bool(shadows)
         self.model = load_model()
@@ -162,6 +172,9 @@ class ArmPendulumEnv(gym.Env):
         if action_mode == "ee":
             v = self.gains.v_max
             self.action_space = gym.spaces.Box(-v, v, (1,), dtype=np.float64)
+        elif action_mode == "kinesthetic":
+            f = self.compliance.force_max
+            self.action_space = gym.spaces.Box(-f, f, (1,), dtype=np.float64)
         else:
             self.action_space = gym.spaces.Box(-self.torque_limits, self.torque_limits, dtype=np.float64)
         self._action_unit: np.ndarray | None = None
@@ -246,30 +259,12 @@ class ArmPendulumEnv(gym.Env):
 
     def _arm_posture(self, x0: float) -> np.ndarray:
         """Joint positions that put the flange ``x0`` along the swing axis from the workspace centre
-        with the home orientation: damped least squares on the flange site's Jacobian from home."""
-        m, d = self.model, self.data
+        with the home orientation (:func:`multiform.envs.arm_model.arm_posture`)."""
         target = np.array(self.workspace_centre) + (x0, 0.0, 0.0)
-        d.qpos[:] = self.home_qpos
-        mujoco.mj_kinematics(m, d)
-        jp, jr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
-        quat, rq, dq, err = np.zeros(4), np.zeros(4), np.zeros(4), np.zeros(6)
-        mujoco.mju_mat2Quat(rq, d.site_xmat[self._site])
-        for _ in range(100):
-            mujoco.mj_kinematics(m, d)
-            mujoco.mj_comPos(m, d)
-            err[:3] = target - d.site_xpos[self._site]
-            mujoco.mju_mat2Quat(quat, d.site_xmat[self._site])
-            mujoco.mju_negQuat(dq, quat)
-            mujoco.mju_mulQuat(dq, rq, dq)
-            mujoco.mju_quat2Vel(err[3:], dq, 1.0)
-            if np.abs(err).max() < 1e-7:
-                break
-            mujoco.mj_jacSite(m, d, jp, jr, self._site)
-            J = np.vstack([jp, jr])[:, :6]
-            d.qpos[:6] += J.T @ np.linalg.solve(J @ J.T + 1e-8 * np.eye(6), err)
-        else:
-            raise RuntimeError(f"no arm posture reaches x0 = {x0} m")
-        return d.qpos.copy()
+        try:
+            return arm_posture(self.model, self.data, self._site, self.home_qpos, target)
+        except RuntimeError:
+            raise RuntimeError(f"no arm posture reaches x0 = {x0} m") from None
 
     @staticmethod
     def _parse_pulses(items: Sequence[Mapping[str, Any]]) -> list[tuple[float, float, float]]:
@@ -318,6 +313,12 @@ class ArmPendulumEnv(gym.Env):
         if self.action_mode == "ee":
             a6 = task_acceleration_list(self._obs_list, float(action[0]), self.gains)
             tau = torques_for(a6, m, d, self.torque_limits, self._work)
+        elif self.action_mode == "kinesthetic":
+            tau = compliant_torques(m, d, self._work, self._impedance(), self.torque_limits)
+            f = self.compliance.force_max
+            fx = float(action[0])
+            if fx - fx == 0.0:
+                apply_hand_force(m, d, self._site, np.array([min(max(fx, -f), f), 0.0, 0.0]))
         else:     # np.minimum/np.maximum: np.clip's Python wrapper costs more than the clipping
             tau = self._tau
             np.minimum(action, self.torque_limits, out=tau)
@@ -350,6 +351,21 @@ class ArmPendulumEnv(gym.Env):
         return obs, self._h if upright else 0.0, out, False, {
             "diverged": False, "out_of_workspace": out, "disturbance": self._applied,
             "is_success": self._upright >= self._hold_steps}
+
+    def _impedance(self) -> list[float]:
+        """The compliant mode's wrench at the flange: light damping and walls along x; y, z and the
+        orientation locked at the workspace centre's."""
+        c, o, (_, cy, cz) = self.compliance, self._obs_list, self.workspace_centre
+        fx = -c.damping * o[_X + 1] + wall_force(o[_X], o[_X + 1], -self.x_limit, self.x_limit, c)
+        vy, vz = o[_EY + 3], o[_EZ + 3]
+        lock = [-c.lock_k * (o[_EY] - cy) - c.lock_d * vy, -c.lock_k * (o[_EZ] - cz) - c.lock_d * vz]
+        return [fx, *lock] + [-c.rot_k * o[_RX + i] - c.rot_d * o[_RX + 3 + i] for i in range(3)]
+
+    def command_from_motion(self, obs: np.ndarray) -> np.ndarray:
+        """The ``[v_cmd]`` commands under which the servo of ``"ee"`` mode reproduces the hand motion in
+        ``obs`` (rows of observations at ``dt``): :func:`multiform.envs.compliant.command_from_motion`."""
+        obs = np.asarray(obs, dtype=np.float64)
+        return command_from_motion(obs[:, _X + 1], self.dt, self.gains.kv)
 
     # -- named views of the last observation (as dm_control's cartpole has physics.pole_angle_cosine())
     def pendulum_angle(self) -> float:

@@ -33,6 +33,7 @@ kr, kw      1600, 80 orientation hold on the rotation-vector error
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import NamedTuple
 
@@ -116,6 +117,51 @@ def task_acceleration_list(o: Sequence[float], v_cmd: float, gains: Gains = DEFA
         -kr * o[_R0] - kw * o[_W0],
         -kr * o[_R0 + 1] - kw * o[_W0 + 1],
         -kr * o[_R0 + 2] - kw * o[_W0 + 2]]
+
+
+class PlanarGains(NamedTuple):
+    """Gains and limits of the two-axis (x-z) velocity servo of a hand moving in the swing plane:
+    the same first-order servo and soft walls as :class:`Gains` on each of x and z (the stroke
+    ``x_limit`` either side of the centre, ``z_low``..``z_high`` about it), the same holds of y and
+    the orientation; the commanded acceleration is capped at ``a_max`` in norm."""
+
+    kv: float = 30.0
+    wall: float = 12.0
+    a_max: float = 40.0
+    kp: float = 1600.0
+    kd: float = 80.0
+    kr: float = 1600.0
+    kw: float = 80.0
+    v_max: float = 2.0
+    x_limit: float = 0.45
+    z_low: float = -0.15
+    z_high: float = 0.25
+    centre: tuple[float, float, float] = WORKSPACE_CENTRE
+
+
+def walled_velocity(v_cmd: float, pos: float, low: float, high: float, v_max: float, wall: float) -> float:
+    """``v_cmd`` clipped to ±v_max and by soft walls at ``low`` and ``high``: the speed towards a
+    wall is at most ``wall × distance`` to it."""
+    v = v_max if v_cmd > v_max else -v_max if v_cmd < -v_max else v_cmd
+    lo, hi = -wall * (pos - low), wall * (high - pos)
+    return lo if v < lo else hi if v > hi else v
+
+
+def planar_task_acceleration(x: float, z: float, xd: float, zd: float, ey: float, vy: float,
+                             r: Sequence[float], w: Sequence[float], vx_cmd: float, vz_cmd: float,
+                             gains: PlanarGains) -> list[float]:
+    """Desired flange acceleration ``[ax, ay, az, alpha_x, alpha_y, alpha_z]`` for the velocity
+    command ``(vx_cmd, vz_cmd)`` in the x-z plane: ``x``, ``z`` the flange's offset from the centre
+    [m], ``xd``, ``zd`` its velocity, ``ey``, ``vy`` its y position and velocity in the world, ``r``
+    the orientation error (rotation vector from home), ``w`` the angular velocity."""
+    g = gains
+    ax = g.kv * (walled_velocity(vx_cmd, x, -g.x_limit, g.x_limit, g.v_max, g.wall) - xd)
+    az = g.kv * (walled_velocity(vz_cmd, z, g.z_low, g.z_high, g.v_max, g.wall) - zd)
+    n = math.sqrt(ax * ax + az * az)
+    if n > g.a_max:
+        ax, az = ax * g.a_max / n, az * g.a_max / n
+    return [ax, -g.kp * (ey - g.centre[1]) - g.kd * vy, az,
+            -g.kr * r[0] - g.kw * w[0], -g.kr * r[1] - g.kw * w[1], -g.kr * r[2] - g.kw * w[2]]
 
 
 class Workspace:

@@ -15,6 +15,7 @@ from ..errors import InvalidInput
 from ..parallel import WorkerState, mp_context, ray_backend, task_key
 from ..runtime.contract import env_contract
 from ..demos.episode import Episode, Mentor
+from .kinesthetic import guided, is_kinesthetic, kinesthetic_env_kwargs
 
 
 @dataclass
@@ -50,9 +51,13 @@ class PushDuring:
 
 def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, Any] | None = None,
                    max_steps: int | None = None, push: PushDuring | None = None) -> Episode:
-    """Record one demonstration of ``mentor`` on ``env`` (an env in end-effector command mode).
+    """Record one demonstration of ``mentor`` on ``env``.
 
-    The env is reset with ``seed`` and ``options``; the mentor gets its own generator seeded from
+    In end-effector command mode the episode's commands are the mentor's. With the env's arm in
+    hand-guiding mode (``action_mode="kinesthetic"``, :mod:`multiform.teach.kinesthetic`) the
+    mentor's actions are its hand's forces on the arm: they drive the env and are never kept, and the
+    episode's commands are those the env recovers from the arm's recorded motion
+    (``env.command_from_motion``). The env is reset with ``seed`` and ``options``; the mentor gets its own generator seeded from
     ``seed`` so a demo is reproducible from its seed alone. The demo ends when the mentor says so,
     the env terminates or truncates, or after ``max_steps``. With ``push`` the experimenter pushes
     during the demo; the episode's reset options then hold the pulses applied (``disturbances``,
@@ -61,6 +66,7 @@ def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, A
     obs_names, cmd_names, dt = env_contract(env)
     obs, info = env.reset(seed=seed, options=options)
     _reset(mentor, obs, np.random.default_rng([seed, 1]), seed)
+    hand_guided = is_kinesthetic(env)              # the actions are a person's forces: never kept
     obs_rows, act_rows, tags = [], [], []
     t = 0.0
     limit = max_steps if max_steps is not None else 10**9
@@ -68,7 +74,8 @@ def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, A
         cmd, tag = mentor.act(obs, info, t)
         cmd = np.asarray(cmd, dtype=np.float64)
         obs_rows.append(np.asarray(obs, dtype=np.float64))
-        act_rows.append(cmd)
+        if not hand_guided:
+            act_rows.append(cmd)
         tags.append(tag)
         if push is not None:
             push(len(tags) - 1, tag, env)
@@ -79,8 +86,13 @@ def record_episode(env: gym.Env, mentor: Mentor, seed: int, options: dict[str, A
     options = dict(options or {})
     if push is not None:
         options["disturbances"] = list(options.get("disturbances") or []) + push.pulses
+    obs_rows = np.asarray(obs_rows)
+    if hand_guided:
+        commands = np.asarray(env.unwrapped.command_from_motion(obs_rows), dtype=np.float64).reshape(len(obs_rows), -1)
+    else:
+        commands = np.asarray(act_rows)
     episode = Episode(
-        obs=np.asarray(obs_rows), actions=np.asarray(act_rows), transitions=np.asarray(tags, dtype=str),
+        obs=obs_rows, actions=commands, transitions=np.asarray(tags, dtype=str),
         observation_names=obs_names, command_names=cmd_names,
         dt=dt, seed=seed, reset_options=options, mentor=str(getattr(mentor, "name", "") or ""))
     episode.labels = list(mentor.label(episode))
@@ -106,7 +118,8 @@ def _setup(task: Any, env_kwargs: dict[str, Any], mentor_kwargs: dict[str, Any])
 
     from ..task import load_task
     t = load_task(task) if isinstance(task, str) else task
-    return {"task": t, "env": gym.make(t.ENV_ID, **env_kwargs), "mentor": t.make_mentor(**mentor_kwargs)}
+    env = gym.make(t.ENV_ID, **env_kwargs)
+    return {"task": t, "env": env, "mentor": guided(t.make_mentor(**mentor_kwargs), env)}
 
 
 _WORKER = WorkerState(_setup, lambda state: state["env"].close())
@@ -144,7 +157,7 @@ def _record(seed: int, starts: str = "demo") -> Episode:
 def record_many(task: Any, seeds: list[int], env_kwargs: dict[str, Any] | None = None,
                 mentor_kwargs: dict[str, Any] | None = None, workers: int = 1,
                 progress: Any = None, start_method: str | None = None, ray: str | None = None,
-                starts: str = "demo") -> list[Episode]:
+                starts: str = "demo", kinesthetic: bool = False) -> list[Episode]:
     """Record one demonstration per seed with the task's scripted mentor, on ``workers`` processes
     (``start_method``: see :func:`multiform.parallel.mp_context`), or as Ray tasks with ``ray``
     (``auto``, ``local`` or a cluster address). ``task`` is a :class:`~multiform.task.Task` or what
@@ -153,7 +166,9 @@ def record_many(task: Any, seeds: list[int], env_kwargs: dict[str, Any] | None =
     ``progress`` is called with (done, total) after each demo. The result is in seed order and does
     not depend on the number of workers nor on where they run. ``starts="trial"`` starts each from
     the task's ``trial_options(seed)`` instead of its ``demo_options(seed)``, without the
-    experimenter's push (the mentor on the robot's evaluation starts).
+    experimenter's push (the mentor on the robot's evaluation starts). ``kinesthetic``: the mentor
+    guides the arm in hand-guiding mode (:mod:`.kinesthetic`); the episodes' commands are recovered
+    from the arm's motion, for the env ``env_kwargs`` make.
     """
     if starts not in ("demo", "trial"):
         raise InvalidInput(f"starts must be 'demo' or 'trial', got {starts!r}", element="starts")
@@ -162,6 +177,8 @@ def record_many(task: Any, seeds: list[int], env_kwargs: dict[str, Any] | None =
     import multiform.envs  # noqa: F401  (registers the envs)
 
     env_kwargs, mentor_kwargs = dict(env_kwargs or {}), dict(mentor_kwargs or {})
+    if kinesthetic:
+        env_kwargs = kinesthetic_env_kwargs(env_kwargs)
     if ray:
         return ray_backend().record_demos(functools.partial(demonstration_in_worker, starts=starts), task, seeds,
                                           env_kwargs, mentor_kwargs, ray, num_cpus=max(1, workers), progress=progress)
@@ -185,7 +202,8 @@ def record_many(task: Any, seeds: list[int], env_kwargs: dict[str, Any] | None =
 
 def record_by_mentors(task: Any, seeds: list[int], plan: Sequence[tuple[str | None, int]],
                       env_kwargs: dict[str, Any] | None = None, workers: int = 1, progress: Any = None,
-                      start_method: str | None = None, ray: str | None = None) -> list[Episode]:
+                      start_method: str | None = None, ray: str | None = None,
+                      kinesthetic: bool = False) -> list[Episode]:
     """Demonstrations by several of the task's scripted mentors: ``plan`` lists (mentor name, count)
     in order (None: the task's default mentor), the counts adding up to ``len(seeds)``; the first
     ``count`` seeds go to the first mentor, and so on (:func:`record_many` records each block)."""
@@ -202,5 +220,5 @@ def record_by_mentors(task: Any, seeds: list[int], plan: Sequence[tuple[str | No
         done = len(out)
         out += record_many(task, block, env_kwargs, mentor_kwargs=t.mentor_kwargs(name), workers=workers,
                            progress=(lambda i, k, done=done: progress(done + i, len(seeds))) if progress else None,
-                           start_method=start_method, ray=ray)
+                           start_method=start_method, ray=ray, kinesthetic=kinesthetic)
     return out

@@ -74,6 +74,11 @@ def replay_demo(path: str | os.PathLike, index: int = 0, every: int = 33) -> Rep
         raise InvalidInput(f"has {len(ds.episodes)} demonstration(s); there is no demo {index}", file=str(path),
                            element="--demo")
     ep: Episode = ds.episodes[index]
+    if ds.meta.get("teaching"):
+        raise InvalidInput(f"holds {ds.meta['teaching']} demonstrations: the mentor guided the arm, and its "
+                           "forces are never recorded, so a demonstration does not replay from its recorded commands "
+                           "(the commands recovered from the arm's motion drive its servo, not the person's arm)",
+                           file=str(path), element=f"demo_{index}")
     env = make_env(ds.env_name, ds.env_kwargs, str(path), render_mode="rgb_array", shadows=False)
     obs, snaps = replay(env, ep, qpos_every=every)
     n = min(len(obs), ep.num_samples)
@@ -158,15 +163,19 @@ def to_recording(r: Replayed, path: str | os.PathLike, live: str | None = None) 
         if r.env is not None and r.qpos:
             base = r.env.unwrapped
             m, d = base.model, base.data
-            bodies = scene.scene_bodies(m)
+            bodies, tendons = scene.scene_bodies(m), scene.scene_tendons(m)
             scene.log_geometry(rec, m, bodies)
-            xpos, xquat = [], []
+            xpos, xquat, strings = [], [], []
             for q in r.qpos:
                 d.qpos[:] = q
                 mujoco.mj_forward(m, d)
                 xpos.append(d.xpos[bodies].copy())
                 xquat.append(d.xquat[bodies].copy())
-            scene.log_poses(rec, m, bodies, np.arange(len(r.qpos)) * r.every, r.dt, np.array(xpos), np.array(xquat))
+                strings.append(scene.tendon_paths(d, tendons))
+            ticks = np.arange(len(r.qpos)) * r.every
+            scene.log_poses(rec, m, bodies, ticks, r.dt, np.array(xpos), np.array(xquat))
+            if tendons:
+                scene.log_tendons(rec, m, tendons, ticks, r.dt, strings)
         if r.outcome:
             log_event(rec, len(r.states) - 1, r.dt, f"outcome: {r.outcome}")
     except BaseException:

@@ -1,5 +1,6 @@
 """The MuJoCo scene as rerun 3-D primitives: one entity per body that carries visible geoms, its
-geoms logged once in the body's frame, the body's pose logged over time.
+geoms logged once in the body's frame, the body's pose logged over time; a visible tendon (the
+ball-in-a-cup's string) as a line through its path points, logged over time.
 
 Poses are read from the simulator for viewing only, as the video's poses are; the robot never sees them.
 """
@@ -80,3 +81,27 @@ def log_poses(rec: rr.RecordingStream, model: mujoco.MjModel, bodies: Sequence[i
     for j, path in enumerate(body_paths(model, bodies)):
         rec.send_columns(path, indexes=times,
                          columns=rr.Transform3D.columns(translation=xpos[:, j], quaternion=_xyzw(xquat[:, j])))
+
+
+def scene_tendons(model: mujoco.MjModel) -> list[int]:
+    """The tendons drawn with a width and a visible colour (a string, a rope)."""
+    return [t for t in range(model.ntendon) if model.tendon_width[t] > 0 and model.tendon_rgba[t][3] > 0]
+
+
+def tendon_paths(data: mujoco.MjData, tendons: Sequence[int]) -> list[np.ndarray]:
+    """The world points each of ``tendons`` runs through now, (k, 3) each (after ``mj_forward``)."""
+    points = data.wrap_xpos.reshape(-1, 3)
+    return [points[a:a + n].copy() for a, n in ((int(data.ten_wrapadr[t]), int(data.ten_wrapnum[t])) for t in tendons)]
+
+
+def log_tendons(rec: rr.RecordingStream, model: mujoco.MjModel, tendons: Sequence[int], ticks: Sequence[int],
+                dt: float, paths: Sequence[Sequence[np.ndarray]]) -> None:
+    """``tendons`` as line strips at ``ticks`` (``paths[i][j]``: tendon j's points at tick i)."""
+    entities = [f"{ROOT}/{_name(model, mujoco.mjtObj.mjOBJ_TENDON, t, 'tendon')}" for t in tendons]
+    colours = [(np.clip(model.tendon_rgba[t], 0, 1) * 255).astype(np.uint8) for t in tendons]
+    radii = [float(model.tendon_width[t]) for t in tendons]
+    for tick, row in zip(ticks, paths):
+        rec.set_time("tick", sequence=int(tick))
+        rec.set_time("sim_time", duration=int(tick) * dt)
+        for path, pts, colour, radius in zip(entities, row, colours, radii):
+            rec.log(path, rr.LineStrips3D([pts], colors=[colour], radii=[radius]))

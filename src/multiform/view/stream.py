@@ -279,8 +279,10 @@ class TrialStream:
         self._pose_ticks: list[int] = []
         self._xpos: list[np.ndarray] = []
         self._xquat: list[np.ndarray] = []
+        self._strings: list[list[np.ndarray]] = []
         if self._mj is not None:
             self._bodies = scene.scene_bodies(self._mj[0])
+            self._tendons = scene.scene_tendons(self._mj[0])
             scene.log_geometry(rec, self._mj[0], self._bodies)
             self._pose(0)
         log_net(rec, executor.apn)
@@ -336,6 +338,8 @@ class TrialStream:
         self._pose_ticks.append(tick)
         self._xpos.append(d.xpos[self._bodies].copy())
         self._xquat.append(d.xquat[self._bodies].copy())
+        if self._tendons:
+            self._strings.append(scene.tendon_paths(d, self._tendons))
 
     def _flush(self) -> None:
         rec = self.recording.rec
@@ -348,7 +352,9 @@ class TrialStream:
         if self._pose_ticks:
             scene.log_poses(rec, self._mj[0], self._bodies, np.array(self._pose_ticks), self.dt,
                             np.array(self._xpos), np.array(self._xquat))
-            self._pose_ticks, self._xpos, self._xquat = [], [], []
+            if self._tendons:
+                scene.log_tendons(rec, self._mj[0], self._tendons, self._pose_ticks, self.dt, self._strings)
+            self._pose_ticks, self._xpos, self._xquat, self._strings = [], [], [], []
 
 
 def trial_views(folder: str | os.PathLike, live: str | None = None, name: str = "trial",
