@@ -70,7 +70,8 @@ def merge_demos(demos: list[str | os.PathLike], out: str | os.PathLike, mentors:
     envs, variables, commands or control periods are refused, naming the file; ``mentors`` names the
     mentor of a file whose demos record none (the file as given → the name). Returns the
     :class:`~multiform.demos.dataset.Dataset` written."""
-    from .demos.dataset import merge_datasets, read_dataset
+    from .demos.dataset import read_dataset
+    from .demos.merge import merge_datasets
     from .lock import exclusive
     target = _new_output(out, overwrite, "file")
     if any(Path(d).resolve() == target.resolve() for d in demos):

@@ -7,7 +7,8 @@ import pytest
 
 from multiform import api
 from multiform.cli import main
-from multiform.demos.dataset import merge_datasets, read_dataset, write_dataset
+from multiform.demos.dataset import read_dataset, write_dataset
+from multiform.demos.merge import merge_datasets
 from multiform.demos.episode import Episode, SegmentLabel, check_mentor_name
 from multiform.errors import InvalidInput
 from multiform.learn.labels import LabelStore
