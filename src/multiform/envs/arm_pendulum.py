@@ -92,7 +92,7 @@ import numpy as np
 from .arm_model import arm_posture, load_model
 from .compliant import DEFAULT_COMPLIANCE, Compliance, apply_hand_force, command_from_motion, compliant_torques, wall_force
 from .osc import DEFAULT_GAINS, OBSERVATION_NAMES, TORQUE_LIMITS, Gains, Workspace, task_acceleration_list, torques_for
-from .rendering import check_frame_skip, make_renderer, skip_frames
+from .rendering import FramedEnv, check_frame_skip
 
 COMMAND_NAMES = ("v_cmd",)
 NOMINAL = {"length": 0.4, "mass": 0.1, "damping": 2e-4}
@@ -130,7 +130,7 @@ def equivalent_length(length: float, mass: float = 1.0) -> float:
     return (it + mass * lc * lc) / (mass * lc)
 
 
-class ArmPendulumEnv(gym.Env):
+class ArmPendulumEnv(FramedEnv, gym.Env):
     """A 6-axis arm carrying a pendulum on its flange (see the module docstring).
 
     ``action_mode`` is ``"ee"``, ``"torque"`` or ``"kinesthetic"``; ``gains`` the reference controller's
@@ -301,11 +301,6 @@ class ArmPendulumEnv(gym.Env):
         self._pulses.sort()
 
     # ------------------------------------------------------------------- step
-    def step(self, action):
-        if self.frame_skip == 1:
-            return self._physics_step(action)
-        return skip_frames(self._physics_step, action, self.frame_skip)
-
     def _physics_step(self, action):
         m, d = self.model, self.data
         if self._action_unit is not None:
@@ -415,18 +410,3 @@ class ArmPendulumEnv(gym.Env):
              *self._rv.tolist(), wx, wy, wz, *self._qpos6.tolist(), *self._qvel6.tolist()]
         self._obs_list = o
         return np.array(o)
-
-    # ----------------------------------------------------------------- render
-    def render(self):
-        if self.render_mode != "rgb_array":
-            return None
-        if self._renderer is None:
-            self._renderer = make_renderer(self.model, self.height, self.width)
-            self._renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self.shadows
-        self._renderer.update_scene(self.data, camera=self.camera)
-        return self._renderer.render().copy()
-
-    def close(self):
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None

@@ -91,7 +91,7 @@ import numpy as np
 from .arm_model import FLANGE_SITE, arm_posture, arm_spec, mount
 from .compliant import DEFAULT_COMPLIANCE, Compliance, apply_hand_force, command_from_motion, compliant_torques, wall_force
 from .osc import TORQUE_LIMITS, PlanarGains, Workspace, planar_task_acceleration, torques_for
-from .rendering import check_frame_skip, make_renderer, skip_frames
+from .rendering import FramedEnv, check_frame_skip
 
 OBSERVATION_NAMES: tuple[str, ...] = (
     "ball_x", "ball_z", "ball_vx", "ball_vz", "hand_x", "hand_z", "hand_vx", "hand_vz",
@@ -145,7 +145,7 @@ def load_model() -> tuple[mujoco.MjModel, np.ndarray]:
     return m, home
 
 
-class BallInCupEnv(gym.Env):
+class BallInCupEnv(FramedEnv, gym.Env):
     """The arm catching a ball on a string in a cup (see the module docstring).
 
     ``action_mode`` is ``"ee"``, ``"kinesthetic"`` or ``"torque"``; ``gains`` the velocity servo's
@@ -301,11 +301,6 @@ class BallInCupEnv(gym.Env):
         return False
 
     # ------------------------------------------------------------------- step
-    def step(self, action):
-        if self.frame_skip == 1:
-            return self._physics_step(action)
-        return skip_frames(self._physics_step, action, self.frame_skip)
-
     def _physics_step(self, action):
         m, d = self.model, self.data
         o = self._obs_list
@@ -405,18 +400,3 @@ class BallInCupEnv(gym.Env):
              px, py, pz, vx, vy, vz, *self._rv.tolist(), wx, wy, wz, *self._qpos6.tolist(), *self._qvel6.tolist()]
         self._obs_list = o
         return np.array(o)
-
-    # ----------------------------------------------------------------- render
-    def render(self):
-        if self.render_mode != "rgb_array":
-            return None
-        if self._renderer is None:
-            self._renderer = make_renderer(self.model, self.height, self.width)
-            self._renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self.shadows
-        self._renderer.update_scene(self.data, camera=self.camera)
-        return self._renderer.render().copy()
-
-    def close(self):
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None

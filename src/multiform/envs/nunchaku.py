@@ -96,7 +96,7 @@ import numpy as np
 
 from ..angles import wrap_angle
 from .load_estimator import LoadEstimator
-from .rendering import check_frame_skip, make_renderer, skip_frames
+from .rendering import FramedEnv, check_frame_skip
 
 OBSERVATION_NAMES = ("hand_x", "hand_z", "hand_q", "hand_vx", "hand_vz", "hand_wq", "ft_fx", "ft_fz",
                      "ft_ty", "grip", "touch", "prox", "phi", "omega", "load")
@@ -319,7 +319,7 @@ class NunchakuHand:
 
 
 
-class NunchakuEnv(NunchakuHand, gym.Env):
+class NunchakuEnv(NunchakuHand, FramedEnv, gym.Env):
     """A hand on a 6-DoF base with a magnet palm and a wrist F/T sensor, holding a nunchaku.
 
     ``max_duration`` [s] truncates an episode; ``capture`` [m] is the magnet's reach from the palm;
@@ -416,11 +416,6 @@ class NunchakuEnv(NunchakuHand, gym.Env):
         return obs
 
     # ------------------------------------------------------------------- step
-    def step(self, action):
-        if self.frame_skip == 1:
-            return self._physics_step(action)
-        return skip_frames(self._physics_step, action, self.frame_skip)
-
     def _physics_step(self, action):
         if self._action_box is not None:
             lo, hi = self._action_box
@@ -549,22 +544,12 @@ class NunchakuEnv(NunchakuHand, gym.Env):
                 "is_success": self._flip["done"]}
 
     # ----------------------------------------------------------------- render
-    def render(self):
-        if self.render_mode != "rgb_array":
-            return None
-        if self._renderer is None:
-            self._renderer = make_renderer(self.model, self.height, self.width)
-            self._renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self.shadows
+    def _render_camera(self):
+        """A free camera beside the swing plane, following the hand."""
+        if self._camera is None:
             cam = mujoco.MjvCamera()
             cam.type = mujoco.mjtCamera.mjCAMERA_FREE
             cam.azimuth, cam.elevation, cam.distance = 90.0, -5.0, 1.3
             self._camera = cam
-        cam = self._camera
-        cam.lookat[:] = [self.data.xpos[self._hand, 0], 0.0, self.data.xpos[self._hand, 2] - 0.15]
-        self._renderer.update_scene(self.data, cam)
-        return self._renderer.render().copy()
-
-    def close(self):
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
+        self._camera.lookat[:] = [self.data.xpos[self._hand, 0], 0.0, self.data.xpos[self._hand, 2] - 0.15]
+        return self._camera

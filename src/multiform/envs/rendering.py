@@ -41,3 +41,34 @@ def skip_frames(physics_step, action, frame_skip: int):
         if terminated or truncated:
             break
     return obs, reward, terminated, truncated, info
+
+
+class FramedEnv:
+    """What the bundled MuJoCo envs share: ``step`` as ``frame_skip`` calls of their
+    ``_physics_step`` (one 1 ms step when it is 1), and ``render``/``close`` of an offscreen renderer
+    (``render_mode`` ``"rgb_array"``, ``height``, ``width``, ``shadows``) looking through
+    :meth:`_render_camera`."""
+
+    def step(self, action):
+        if self.frame_skip == 1:
+            return self._physics_step(action)
+        return skip_frames(self._physics_step, action, self.frame_skip)
+
+    def _render_camera(self):
+        """The camera the frames are taken from (the env's ``camera``: a name or an id)."""
+        return self.camera
+
+    def render(self):
+        if self.render_mode != "rgb_array":
+            return None
+        if self._renderer is None:
+            import mujoco
+            self._renderer = make_renderer(self.model, self.height, self.width)
+            self._renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self.shadows
+        self._renderer.update_scene(self.data, camera=self._render_camera())
+        return self._renderer.render().copy()
+
+    def close(self):
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
