@@ -57,6 +57,7 @@ import numpy as np
 from ..envs.ball_in_cup import CUP_FLOOR, CUP_HALF_WIDTH, CUP_RIM, GAINS, OBSERVATION_NAMES
 from ..demos.episode import Episode, SegmentLabel
 from ..teach.kinesthetic import GuidingHand
+from .mistakes import draw_mistake
 
 G = 9.81
 MISTAKES = ("early_pull", "late_pull", "weak_pull", "slow_catch")
@@ -129,12 +130,7 @@ class BallInCupMentor:
 
     def _new_attempt(self) -> None:
         rng = self.rng
-        kind = self.mistake
-        if kind is None:
-            kind = "none"
-            if rng.random() < self.mistake_rate:
-                w = np.asarray(self.mistake_weights, dtype=float)
-                kind = MISTAKES[int(rng.choice(len(MISTAKES), p=w / w.sum()))]
+        kind = draw_mistake(rng, MISTAKES, self.mistake, self.mistake_rate, self.mistake_weights)
         self.mistake_kind = kind
         self.mistakes.append(kind)
         self._aim = float(rng.uniform(*self.energy_aim))

@@ -63,6 +63,7 @@ import numpy as np
 from ..angles import wrap_angle
 from ..envs.arm_pendulum import NOMINAL, equivalent_length
 from ..demos.episode import Episode, SegmentLabel
+from .mistakes import draw_mistake
 
 G = 9.81
 BALANCE_GAINS = (4.385, 0.8646, 0.9542, 1.882)   # v = K . (theta, omega, x, xdot)
@@ -151,12 +152,7 @@ class PendulumMentor:
         lo, hi = self.delay
         self.delay_steps = int(round(rng.uniform(lo, hi) / self.dt))
         self.period = max(1, int(round(1.0 / (self.rate * self.dt))))
-        kind = self.mistake
-        if kind is None:
-            kind = "none"
-            if rng.random() < self.mistake_rate:
-                w = np.asarray(self.mistake_weights, dtype=float)
-                kind = MISTAKES[int(rng.choice(len(MISTAKES), p=w / w.sum()))]
+        kind = draw_mistake(rng, MISTAKES, self.mistake, self.mistake_rate, self.mistake_weights)
         self.mistake_kind = kind
         # the parameters of the mistake, drawn now so that a demo is fixed by its generator
         self._wrong_from = float(rng.uniform(0.5, 3.0))
