@@ -163,6 +163,32 @@ def test_a_repeat_limit_that_ends_trials_the_mentor_kept_going_is_moved():
     assert r.key == "limit_too_tight:t4" and str(r.apn.transition("t4").condition) == "fires_t2 >= 8"
 
 
+def _fell_once(seed: int) -> Episode:
+    """A mentor's demonstration that lost the balance once, went back to swinging up (t7) and succeeded."""
+    ep = mentor_episode(seed)
+    tags = np.array(["t0"] * 10 + ["t2"] * 90 + ["t1"] * 40 + ["t7"] * 60 + ["t1"] * 50 + ["t3"] * 50)
+    labels = [SegmentLabel(s, e, t, True) for s, e, t in ((0, 10, "t0"), (10, 100, "t2"), (100, 140, "t1"),
+                                                          (140, 200, "t7"), (200, 250, "t1"), (250, 300, "t3"))]
+    return Episode(obs=ep.obs, actions=ep.actions, transitions=tags, observation_names=ep.observation_names,
+                   command_names=ep.command_names, dt=ep.dt, seed=seed, labels=labels, outcome="success")
+
+
+def test_a_limit_on_a_count_of_events_moves_to_the_mentors_count_never_by_a_ratio_of_stays():
+    """``fires_t7 >= 1`` (one fall ends the trial) held a moment after the fall's way back: the count is
+    compared with how often the mentor's successes fell, not scaled by the short stay since the fall."""
+    apn = edited(t7={"label": "way back", "in": ["P2"], "out": ["P1"], "law": "swing_up", "condition": "abs(theta) > 0.8"},
+                 t8={"label": "fell once", "in": ["P1"], "out": ["fail"], "condition": "fires_t7 >= 1"})
+    fir = [(0, "t0"), (40, "t1"), (60, "t7"), (61, "t8")]
+    tr = [make_trace(apn, fir, vals(70), "failure") for _ in range(3)]
+    mentor = mentor_evidence(apn, [_fell_once(k) for k in range(2)] + EPISODES[:2])   # it fell at most once
+    (f,) = [f for f in diagnose(apn, tr, mentor=mentor).findings if f.kind == "limit_too_tight"]
+    assert f.transition == "t8" and f.condition == "fires_t7 >= 2"
+    assert f.evidence["examples"][0]["mentor_most_in_a_success"] == 1
+    # the mentor never fell and succeeded: one fall is a real failure, the limit stays
+    mentor = mentor_evidence(apn, EPISODES)
+    assert not [f for f in diagnose(apn, tr, mentor=mentor).findings if f.kind == "limit_too_tight"]
+
+
 def test_a_fall_angle_inside_what_the_mentor_balanced_through_is_moved_beyond_it():
     apn = edited(t5={"condition": "abs(theta) > 0.08 or fires_t3 >= 10"})
     mentor = mentor_evidence(apn, EPISODES)                     # the mentor balanced at up to 0.103 rad

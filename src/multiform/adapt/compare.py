@@ -330,6 +330,8 @@ def _moved_limit(apn: APN, place: str, mentor: MentorEvidence, atom: tuple, expr
     longest stay over the robot's, a state bound moved beyond the mentor's range. An atom that mixes
     clocks and state is left alone."""
     if all(is_clock(n) for n in names):
+        if any(n.startswith("fires_") and not _repeats_in(apn, n[len("fires_"):], place) for n in names):
+            return _moved_count(mentor, atom, expr, op, names, env)
         if mentor_stay is None or op not in GREATER or stay <= 0 or stay >= mentor_stay:
             return None
         new = c * SLACK * mentor_stay / stay
@@ -346,6 +348,36 @@ def _moved_limit(apn: APN, place: str, mentor: MentorEvidence, atom: tuple, expr
     new, (lo, hi) = moved
     return new, {"atom": to_text(atom), "robot_value": round(v, 4),
                  "mentor_successful_range": [round(lo, 4), round(hi, 4)]}
+
+
+def _repeats_in(apn: APN, tid: str, place: str) -> bool:
+    """Whether ``tid`` loops on ``place``: its count grows with the time spent there, so a limit on
+    it scales with the mentor's stay; any other transition's count grows with events, not time."""
+    if tid not in apn.transition_ids:
+        return False
+    t = apn.transition(tid)
+    return place in t.inputs and place in t.outputs
+
+
+def _moved_count(mentor: MentorEvidence, atom: tuple, expr: tuple, op: Any, names: set[str], env: dict[str, float]
+                 ) -> tuple[float, dict[str, Any]] | None:
+    """A limit on how often a transition other than a repeat of the place fired (``fires_t6 >= 4``:
+    four misses) moved just past the most the mentor's successful demonstrations took it, or None
+    if the robot had gone past that (the mentor's successes never needed more) or the atom is not
+    such a limit. A count of events is compared with counts, never scaled by stay times: a short
+    stay since the last event says nothing about how many events the mentor needed."""
+    if op not in GREATER or len(names) != 1 or expr[0] != "var":
+        return None
+    (name,) = names
+    tid = name[len("fires_"):]
+    done = [ep for ep in mentor.episodes if ep.outcome == "success"]
+    if not done:
+        return None
+    top = max(sum(1 for _, _, t in ep.segments() if t == tid) for ep in done)
+    if env.get(name, math.inf) > top:
+        return None
+    return float(top + 1 if op is operator.ge else top), {
+        "atom": to_text(atom), "robot_count": env.get(name), "mentor_most_in_a_success": top}
 
 
 def moved_state_bound(apn: APN, place: str, mentor: MentorEvidence, expr: tuple, op: Any, v: float
