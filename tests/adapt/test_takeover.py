@@ -32,45 +32,6 @@ def test_the_mentor_takes_over_where_the_running_law_was_least_sure():
     assert stuck_tick(short, apn, {"swing_up": law}) is None
 
 
-class _Unsure:
-    """A law whose posterior std (over a prior std of 1) is its input column ``col``: an unsure spot is made by hand."""
-
-    sigma_f_, y_scale_ = 1.0, 1.0
-
-    def __init__(self, col: int):
-        self.col = col
-
-    def predict(self, X, return_std=False):
-        return np.zeros(len(X)), np.asarray(X)[:, self.col]
-
-
-def test_the_mentor_takes_over_in_the_stay_the_trial_failed_in_not_one_it_survived():
-    """A push upset the balance (its law wholly unsure) and the way back answered it; the trial then
-    failed swinging up again: the mentor shows the swing-up where that law knew least, though the
-    balance law knew less during the push."""
-    apn = _with_way_back(load_skill("pendulum"))
-    n = 2000
-    v = np.zeros((n, 6))
-    v[:, 1] = 0.1                                      # omega: the balance law's unsureness
-    v[:, 2] = 0.1                                      # x: the swing-up law's unsureness
-    v[700:750, 1] = 1.0                                # the push, while balancing
-    v[1500:1550, 2] = 0.5                              # spinning in the last stay
-    laws = {"swing_up": _Unsure(3), "balance": _Unsure(1)}    # swing_up reads (s, c, omega, x); balance (theta, omega, ...)
-    fir = [(0, "t0"), (600, "t1"), (900, "t7"), (1100, "t2"), (1990, "t4")]
-    assert 1500 <= stuck_tick(make_trace(apn, fir, v, "failure"), apn, laws) < 1550
-    # a last stay begun in the trial's last second is too short to weigh: the whole trial counts
-    late = [(0, "t0"), (600, "t1"), (1850, "t7"), (1990, "t4")]
-    assert 700 <= stuck_tick(make_trace(apn, late, v, "failure"), apn, laws) < 750
-
-
-def _with_way_back(apn):
-    from multiform.petri.skillfile import skill_from_data, skill_to_data
-    d = skill_to_data(apn)
-    d["transitions"]["t7"] = {"label": "way back", "in": ["P2"], "out": ["P1"], "law": "swing_up",
-                              "condition": "abs(theta) > 0.8"}
-    return skill_from_data(d, "test")
-
-
 def test_a_failed_trial_gets_one_takeover_within_the_budget_kept_apart_with_its_source(tmp_path):
     from multiform.adapt.practice import Practice, PracticeConfig, PracticeState, TrialRecord
     from multiform.adapt.experience import Experience

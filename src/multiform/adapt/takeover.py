@@ -33,22 +33,13 @@ MARGIN = 1.0         # s: not in the first or last second of the trial (no histo
 
 def stuck_tick(trace: Trace, apn: APN, laws: Mapping[str, Any]) -> int | None:
     """The tick of ``trace`` at which the law that ran was least sure of its command (posterior std
-    over prior std) in the stay the trial failed in, or None if no law ran long enough to weigh.
-
-    Only the last stay counts (from the last switch into a place; its repeats stay in it): what
-    the robot survived before does not need the mentor, and after a push the stay that never ends
-    well (a pendulum spinning that the swing-up law does not brake) is where it needs to be shown,
-    not the balancing that the push upset and the way back answered. A last stay too short to weigh
-    (within the first or last second) falls back to the whole trial."""
+    over prior std), or None if no law ran long enough to weigh."""
     n = len(trace.obs)
     step = max(1, int(round(STEP / trace.dt)))
     lo, hi = int(MARGIN / trace.dt), n - int(MARGIN / trace.dt)
     firings = sorted((f.tick, f.transition) for f in trace.firings)
     if hi <= lo or not firings:
         return None
-    entered = _last_stay(apn, firings)
-    if entered + int(MARGIN / trace.dt) < hi:
-        lo = max(lo, entered)
     ticks = np.arange(lo, hi, step)
     ran = [apn.transition(t).law if t in apn.transition_ids else None for _, t in firings]
     last = np.searchsorted([k for k, _ in firings], ticks, side="right") - 1     # the firing each tick runs under
@@ -66,16 +57,3 @@ def stuck_tick(trace: Trace, apn: APN, laws: Mapping[str, Any]) -> int | None:
         if rel[i] > best:
             best, where = float(rel[i]), int(at[i])
     return where
-
-
-def _last_stay(apn: APN, firings: list[tuple[int, str]]) -> int:
-    """The tick the trial's last stay began: its last firing that moved the token to another place,
-    a firing into a final place (the failure the stay ended in) aside."""
-    for tick, tid in reversed(firings):
-        if tid not in apn.transition_ids:
-            continue
-        t = apn.transition(tid)
-        if any(apn.place(p).final for p in t.outputs) or set(t.outputs) == set(t.inputs):
-            continue
-        return tick
-    return 0
