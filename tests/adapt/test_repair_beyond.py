@@ -110,6 +110,21 @@ def test_a_condition_that_fires_where_the_mentor_never_switched_is_relearned():
                 if f.transition == "t1"]
 
 
+def test_a_timed_switch_the_mentors_timing_bears_out_is_not_relearned_for_firing_in_failures():
+    """``dwell > 1.5`` holds at every mentor switch (after 1.9 s) and along 5.3 % of the clock where the
+    mentor held off: a timed maneuver, held to the timed share (20 %), not the state conditions' 5 %.
+    Failures after it fired say the maneuver failed, not that its timing is wrong; a clock far too
+    short still is."""
+    apn = edited(t1={"condition": "dwell > 1.5"})
+    mentor = mentor_evidence(apn, EPISODES)
+    assert mentor.conditions["t1"].timed and 0.05 < mentor.conditions["t1"].loose < 0.2
+    assert not [f for f in diagnose(apn, _loose_failures(apn), mentor=mentor).findings if f.transition == "t1"]
+    apn = edited(t1={"condition": "dwell > 1.2"})
+    mentor = mentor_evidence(apn, EPISODES)
+    assert [f.kind for f in diagnose(apn, _loose_failures(apn), mentor=mentor).findings if f.transition == "t1"] \
+        == ["too_loose"]
+
+
 def test_a_condition_too_strict_for_the_mentors_switches_is_relearned():
     apn = edited(t1={"condition": "abs(theta) < 0.01 and abs(omega) < 0.01"})   # holds now and then, not never
     mentor = mentor_evidence(apn, EPISODES)

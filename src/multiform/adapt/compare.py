@@ -41,11 +41,12 @@ from ..petri.guard import to_text
 from ..petri.guard_tree import GREATER, atoms, normal, replace_at, subtree, value_at, variables, with_constant
 from ..petri.net import APN, is_clock
 from ..runtime.trace import Trace
-from .mentor import MentorEvidence
+from .mentor import TIMED_LOOSE, MentorEvidence
 
 STARVED = 0.01          # λ below this share of its choice group counts as starved
 STRICT = 0.5            # a condition holding at fewer of the mentor's switch moments is too strict
-LOOSE = 0.05            # one holding at more of the mentor's non-switch states is too loose
+LOOSE = 0.05            # one holding at more of the mentor's non-switch states is too loose (a timed
+                        # clock-only switch: at more than mentor.TIMED_LOOSE of the clock where it held off)
 SLACK = 2.0             # a limit moved to the mentor's longest successful stay leaves this much room: the robot's
                         # maneuvers run slower than the mentor's (nunchaku swing-up, 1.25: 87/100 against the sound 97/100)
 LAW_RATIO = 0.7         # another law explains a transition's segments when its error is under this share
@@ -257,18 +258,12 @@ def _strictness(apn: APN, failed: list[Trace], succeeded: list[list[str]], mento
                                f"'{t.condition}' holds at {100 * fit.hit:.0f} % of the {fit.switches} moments the mentor "
                                f"switched into {tid}; {waited} of {len(failed)} failed trials ended waiting in "
                                f"{', '.join(t.inputs)}, {fired} fired it", ev))
-        elif fit.loose > LOOSE and 2 * fired >= len(failed):
+        elif fit.loose > (TIMED_LOOSE if fit.timed else LOOSE) and 2 * fired >= len(failed):
             out.append(Finding("too_loose", tid,
                                f"'{t.condition}' holds at {100 * fit.loose:.1f} % of the states where the mentor chose "
                                f"not to switch into {tid} (over {fit.negatives}); the robot fired it in {fired} of "
                                f"{len(failed)} failed trials", ev))
     return out
-
-
-
-
-
-
 
 
 def _limits(apn: APN, failed: list[Trace], succeeded: list[list[str]], mentor: MentorEvidence) -> list[Finding]:

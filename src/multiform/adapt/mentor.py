@@ -57,10 +57,12 @@ class ConditionFit:
     hit: float                    # fraction of those switch moments at which the condition holds
     loose: float                  # fraction of the mentor's non-switch states at which it holds
     negatives: int
+    timed: bool = False           # a clock-only switch the mentor's timing bears out: held against durations
 
     def to_json(self) -> dict[str, Any]:
         return {"mentor_switches": self.switches, "holds_at_mentor_switches": round(self.hit, 3),
-                "holds_where_mentor_did_not_switch": round(self.loose, 3), "non_switch_states": self.negatives}
+                "holds_where_mentor_did_not_switch": round(self.loose, 3), "non_switch_states": self.negatives,
+                **({"timed": True} if self.timed else {})}
 
 
 @dataclass
@@ -242,7 +244,7 @@ def _duration_fit(apn: APN, episodes: Sequence[Episode], tid: str, min_switches:
     neg = switch_data(apn, episodes, tid, [clock]).negatives[:, 0]
     hit = float(np.mean(g.evaluate_arrays({"dwell": np.asarray(at_switch)}) > 0))
     loose = float(np.mean(g.evaluate_arrays({"dwell": neg}) > 0)) if len(neg) else 0.0
-    return ConditionFit(len(at_switch), hit, loose, int(len(neg)))
+    return ConditionFit(len(at_switch), hit, loose, int(len(neg)), timed=True)
 
 
 def _missing(apn: APN, episodes: Sequence[Episode], min_uses: int) -> dict[str, Missing]:
