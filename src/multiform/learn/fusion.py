@@ -213,8 +213,7 @@ class Fusion:
 
     def sample_masks(self, episodes: Sequence[Episode], seed: int) -> list[np.ndarray | None]:
         """Per episode, the samples a law keeps: each sample of a mentor's segment of a transition with
-        that mentor's weight in it, none where the weight is under :data:`TRUSTED` (seeded per
-        episode); None where every sample stays."""
+        that mentor's weight in it (seeded per episode); None where every sample stays."""
         out: list[np.ndarray | None] = []
         for i, ep in enumerate(episodes):
             if ep.mentor not in self.mentors:
@@ -222,7 +221,6 @@ class Fusion:
                 continue
             tags, inverse = np.unique(ep.transitions, return_inverse=True)
             w = np.array([self.weight(ep.mentor, str(t)) for t in tags])
-            w[w < TRUSTED] = 0.0                  # as for switches: an untrusted mentor's maneuver is left out
             if np.all(w >= 1.0):
                 out.append(None)
                 continue
