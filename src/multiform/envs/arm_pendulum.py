@@ -216,10 +216,7 @@ class ArmPendulumEnv(FramedEnv, gym.Env):
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | None = None, options: Mapping[str, Any] | None = None):
         super().reset(seed=seed)
-        options = dict(options or {})
-        unknown = sorted(set(options) - set(_OPTIONS))
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {unknown}; known: {list(_OPTIONS)}")
+        options = self._reset_options(options, _OPTIONS)
         rng = self.np_random
         randomize = bool(options.get("randomize", False))
         p = {}

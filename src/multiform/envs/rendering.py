@@ -54,6 +54,15 @@ class FramedEnv:
             return self._physics_step(action)
         return skip_frames(self._physics_step, action, self.frame_skip)
 
+    @staticmethod
+    def _reset_options(options, known) -> dict:
+        """``options`` as a dict, refused if it names an option outside ``known``."""
+        options = dict(options or {})
+        unknown = sorted(set(options) - set(known))
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {unknown}; known: {list(known)}")
+        return options
+
     def _render_camera(self):
         """The camera the frames are taken from (the env's ``camera``: a name or an id)."""
         return self.camera
