@@ -197,6 +197,16 @@ def test_a_stay_that_handed_over_to_a_success_passes_with_it():
     assert credit_handovers(product, lambda g: True, ["P1", "P2"]).score == pytest.approx(0.81)
     # a judged place the trial never reached scores 0, credited or not
     assert credit_handovers(trial(("t0", "P1", 0.3), ("t1", "P2", 0.9)), lambda g: True, ["P1", "P2", "P3"]).score == 0.0
+    # credit runs back along a chain of handovers: a pumping and a pull whose ball flew into the cup
+    # and stayed both did their job, though their own judges fail them (ball-in-cup, job seed 4)
+    chain = credit_handovers(trial(("t0", "P1", 0.29), ("t2", "P2", 0.16), ("t3", "P3", 0.31), ("t4", "P4", 0.94)),
+                             lambda g: g.transition in forward | {"t4"}, ["P1", "P2", "P3", "P4"])
+    assert chain.places == {"P1": 0.94, "P2": 0.94, "P3": 0.94, "P4": 0.94} and chain.success
+    assert [g.score for g in chain.segments] == [0.29, 0.16, 0.31, 0.94]
+    # ... and stops at a link that is not a way forward
+    broken = credit_handovers(trial(("t0", "P1", 0.29), ("t9", "P2", 0.16), ("t3", "P3", 0.31), ("t4", "P4", 0.94)),
+                              lambda g: g.transition in forward | {"t4"}, ["P1", "P2", "P3", "P4"])
+    assert broken.places == {"P1": 0.29, "P2": 0.94, "P3": 0.94, "P4": 0.94} and not broken.success
 
 
 def test_save_load_and_bad_judge_files(judges, tmp_path):

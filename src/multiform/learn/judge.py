@@ -45,6 +45,7 @@ from .views import base_source, is_demonstration, is_mirror
 KIND = "judge"
 VERSION = 1
 _PREFIX = "svm_"
+PASS = 0.5                 # a score at least this is a success
 
 Key = tuple[str, int, int]
 FEATURE_SETS: dict[str, tuple[str, ...]] = {"end": ("end",), "extrema": ("end", "min", "max", "absmax"), "all": STATS}
@@ -168,7 +169,7 @@ class Judge(BaseEstimator):
 
     def predict(self, segments: Sequence[Segment]) -> np.ndarray:
         """Verdicts: True where the score is at least 0.5."""
-        return self.grade_many(segments) >= 0.5
+        return self.grade_many(segments) >= PASS
 
     @property
     def shortest_taught_(self) -> float:
@@ -279,7 +280,7 @@ class SegmentGrade:
 
     @property
     def success(self) -> bool:
-        return self.score >= 0.5
+        return self.score >= PASS
 
     @property
     def disagrees(self) -> bool:
@@ -297,7 +298,7 @@ class TrialGrade:
 
     @property
     def success(self) -> bool:
-        return self.score >= 0.5
+        return self.score >= PASS
 
     def disagreements(self) -> list[SegmentGrade]:
         return [g for g in self.segments if g.disagrees]
@@ -312,20 +313,25 @@ class TrialGrade:
 def credit_handovers(grade: TrialGrade, forward: Callable[[SegmentGrade], bool], judged: Sequence[str]
                      ) -> TrialGrade:
     """``grade`` where a place whose last graded stay handed the token on to a stay of another place
-    that its judge passes, through a way forward (``forward(next_stay)``: the transition that began
-    the next stay belongs to the skill as written and does not lead to failure), takes that grade
-    when it is higher. A maneuver whose successor succeeded from where it left off did its job: so
-    the mentor grades a swing-up whose catch held. A judge taught by a few demonstrations cannot
-    always see that in the segment alone (5 demos, job seed 2: the robot's verdict agreed with the
-    physical check on 160 of 200 evaluation trials, 199 with the handovers credited). The stays' own grades are kept: they choose the robot's
-    own training data. ``judged``: every judged place (one the trial never visited scores 0)."""
+    that passes, through a way forward (``forward(next_stay)``: the transition that began the next
+    stay belongs to the skill as written and does not lead to failure), takes that stay's grade when
+    it is higher. A maneuver whose successor succeeded from where it left off did its job: so the
+    mentor grades a swing-up whose catch held. A stay passes when its judge passes it or, by the same
+    rule, when it handed on to a stay that passes: credit runs back along the chain of handovers
+    (ball-in-cup: a pumping and a pull whose ball flew into the cup and stayed). A judge taught by a
+    few demonstrations cannot always see that in the segment alone (pendulum, 5 demos, job seed 2:
+    the robot's verdict agreed with the physical check on 160 of 200 evaluation trials, 199 with the
+    handovers credited). The stays' own grades are kept: they choose the robot's own training data.
+    ``judged``: every judged place (one the trial never visited scores 0)."""
     segs = sorted(grade.segments, key=lambda g: g.start)
-    last = {g.place: i for i, g in enumerate(segs)}
+    credited = [g.score for g in segs]
+    for i in range(len(segs) - 2, -1, -1):
+        nxt = segs[i + 1]
+        if nxt.place != segs[i].place and credited[i + 1] >= PASS and forward(nxt):
+            credited[i] = max(credited[i], credited[i + 1])
     places = dict(grade.places)
-    for p, i in last.items():
-        nxt = segs[i + 1] if i + 1 < len(segs) else None
-        if nxt is not None and nxt.place != p and nxt.success and forward(nxt):
-            places[p] = max(places[p], nxt.score)
+    for p, i in {g.place: i for i, g in enumerate(segs)}.items():
+        places[p] = max(places[p], credited[i])
     scores = [places.get(p, 0.0) for p in judged]
     return TrialGrade(grade.segments, places, _combine(scores, grade.combine) if scores else grade.score,
                       grade.combine)
