@@ -72,7 +72,7 @@ def one_seed(task: str, out: Path, seed: int, trials: int, eval_seed: int, worke
     res = {"seed": seed, "revisions": {k: [f"{v['operator']} {v['target']}" for v in p["revisions"]] for k, p in practice.items()},
            "successes": r["successes"], "trials": r["trials"],
            "unpushed": [sum(t["success"] for t in unpushed), len(unpushed)],
-           "pushed": [r["pushed"]["successes"], r["pushed"]["trials"]],
+           "pushed": [r["pushed"]["successes"], r["pushed"]["trials"]] if r.get("pushed") else [0, 0],
            "failures": dict(collections.Counter(t["outcome"] for t in detail if not t["success"])),
            "practice_trials": sum(p["trials"] for p in practice.values()),
            "robot_seconds": round(sum(p["robot_seconds"] for p in practice.values()), 1),
@@ -107,7 +107,7 @@ def main() -> None:
         lo, hi = wilson(r["successes"], r["trials"])
         print(f"seed {seed}: {100 * r['successes'] / r['trials']:.1f} % ({r['successes']}/{r['trials']}; "
               f"{100 * lo:.1f}-{100 * hi:.1f} %), unpushed {r['unpushed'][0]}/{r['unpushed'][1]}, "
-              f"pushed {r['pushed'][0]}/{r['pushed'][1]}; practice {r['practice_trials']} trials "
+              f"pushed {r['pushed'][0]}/{r['pushed'][1] or 'none'}; practice {r['practice_trials']} trials "
               f"({r['mentor_labelled_trials']} with the mentor, {r['robot_seconds']:.0f} s of robot time); "
               f"failures {r['failures'] or '-'}; {r['minutes']} min", flush=True)
         for name, revs in r["revisions"].items():
