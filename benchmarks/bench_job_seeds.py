@@ -122,21 +122,24 @@ def main() -> None:
               f"(target ≥ {100 * target:.0f} % for every seed); robot time in practice: median "
               f"{statistics.median(r['robot_seconds'] for r in rows):.0f} s, "
               f"most {max(r['robot_seconds'] for r in rows):.0f} s")
-        record_seeds(rec, task, rows, args.eval_seed, target)
+        record_seeds(rec, task, rows, args.eval_seed, target,
+                     task.TASK + (f" from {args.demos} demonstrations" if args.demos else ""))
         rec.write(args.results)
 
 
-def record_seeds(rec: Record, task, rows: list[dict], eval_seed: int, target: float) -> None:
+def record_seeds(rec: Record, task, rows: list[dict], eval_seed: int, target: float, name: str = "") -> None:
     """Each seed's final success (unpushed / pushed, practice trials, robot time in practice), then the
-    median and range over the seeds, against ``target`` for every seed."""
+    median and range over the seeds, against ``target`` for every seed; ``name`` (default: the task's)
+    heads every figure."""
+    name = name or task.TASK
     for r in rows:
-        rec.rate(f"seed_{r['seed']}", f"{task.TASK}, job seed {r['seed']}: the final skill on {r['trials']} "
+        rec.rate(f"seed_{r['seed']}", f"{name}, job seed {r['seed']}: the final skill on {r['trials']} "
                  f"evaluation trials (evaluation seed {eval_seed})", r["successes"], r["trials"],
                  target=at_least(target), counts={"unpushed": r["unpushed"], "pushed": r["pushed"]},
                  extra={"practice_trials": r["practice_trials"], "mentor_labelled_trials": r["mentor_labelled_trials"],
                         "robot_seconds_in_practice": r["robot_seconds"]})
     rates = [r["successes"] / r["trials"] for r in rows]
-    rec.figure("median", f"{task.TASK}: median over job seeds {', '.join(str(r['seed']) for r in rows)}",
+    rec.figure("median", f"{name}: median over job seeds {', '.join(str(r['seed']) for r in rows)}",
                statistics.median(rates), "%", values={"median": statistics.median(rates), "min": min(rates),
                                                        "max": max(rates)},
                target=at_least(target, of="min", text=f"every seed ≥ {100 * target:g} %"))
