@@ -13,7 +13,11 @@ Fitting (scikit-learn, offline): inputs standardised, RBF ``SVC`` with ``class_w
 Evaluation (the net, every tick): ``__call__(x) -> bool`` and ``decision(x)`` run through
 :class:`~.fast_svm.FastDecision` (one compiled loop per state). ``threshold`` trades false positives (firing where
 the mentor would not) against misses: the condition holds where ``decision(x) > threshold``;
-:meth:`LearnedCondition.threshold_for` picks one for a target false-positive rate.
+:meth:`LearnedCondition.threshold_for` picks one for a target false-positive rate. With ``at_peak``
+(the default) the net fires it at the peak of its decision along each passage through that region
+rather than on entering it (:class:`multiform.petri.firing.NetRunner`): a switch is a moment, and the
+region spans every moment the mentor switched at, so its edge is the earliest of them, not the typical
+one. Files saved without the setting fire on entering, as they did when they were written.
 """
 
 from __future__ import annotations
@@ -48,7 +52,7 @@ class LearnedCondition(BaseEstimator):
 
     def __init__(self, input_names: Sequence[str] = (), C: float = 10.0, gamma: float | str = "scale",
                  threshold: float = 0.0, max_support: int = 500, max_train: int = 4000,
-                 class_weight: Any = "balanced", random_state: int = 0):
+                 class_weight: Any = "balanced", random_state: int = 0, at_peak: bool = True):
         self.input_names = input_names
         self.C = C
         self.gamma = gamma
@@ -57,6 +61,7 @@ class LearnedCondition(BaseEstimator):
         self.max_train = max_train
         self.class_weight = class_weight
         self.random_state = random_state
+        self.at_peak = at_peak
 
     # -- fitting ------------------------------------------------------------------------------------
     def fit(self, X: np.ndarray, y: np.ndarray) -> LearnedCondition:
@@ -135,7 +140,7 @@ class LearnedCondition(BaseEstimator):
         arrays, dmeta = self.decision_.to_arrays()
         meta = {"input_names": list(self.input_names), "threshold": self.threshold, "C": self.C,
                 "gamma": self.gamma, "max_support": self.max_support, "max_train": self.max_train,
-                "random_state": self.random_state, "n_train": self.n_train_, "fit_rounds": self.fit_rounds_,
+                "random_state": self.random_state, "at_peak": self.at_peak, "n_train": self.n_train_, "fit_rounds": self.fit_rounds_,
                 "train_rates": self.train_rates_, "decision": dmeta}
         save_npz(path, arrays, meta, KIND, VERSION)
 
@@ -156,7 +161,8 @@ class LearnedCondition(BaseEstimator):
         try:
             c = cls(input_names=tuple(names), C=float(meta["C"]), gamma=meta["gamma"],
                     threshold=float(meta["threshold"]), max_support=int(meta["max_support"]),
-                    max_train=int(meta["max_train"]), random_state=int(meta["random_state"]))
+                    max_train=int(meta["max_train"]), random_state=int(meta["random_state"]),
+                    at_peak=bool(meta.get("at_peak", False)))
             c.n_train_ = int(meta["n_train"])
             c.fit_rounds_ = [tuple(int(v) for v in r) for r in meta["fit_rounds"]]
             c.train_rates_ = {k: float(v) for k, v in meta["train_rates"].items()}

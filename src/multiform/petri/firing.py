@@ -32,7 +32,12 @@ from .net import APN
 
 
 class LearnedCondition(Protocol):
-    """What a learned condition model offers the net: its input names and a boolean decision."""
+    """What a learned condition model offers the net: its input names and a boolean decision.
+
+    A model with ``at_peak`` true also offers ``decision(x) -> float`` and ``threshold``: it stands
+    for a moment (the mentor's switch), not a region, and fires at the peak of its decision along
+    each passage through the region (see :class:`_PeakGuard`).
+    """
 
     input_names: tuple[str, ...]
 
@@ -112,12 +117,18 @@ class NetRunner:
                 self._guards.append(self._learned_guard(learned[t.condition.model]))
             else:
                 self._guards.append(t.condition.guard.compile({**self.slots, "dwell": dwell}))
-        # A condition that yields to other transitions holds only where none of theirs does.
+        # A condition that yields to other transitions holds only where none of theirs does (where
+        # theirs holds, whether or not it fires there yet).
         own = list(self._guards)
+        self._peaks: list[_PeakGuard] = []
+        for j, t in enumerate(apn.transitions):
+            if t.condition.is_learned and getattr(learned[t.condition.model], "at_peak", False):
+                self._peaks.append(_PeakGuard(self, learned[t.condition.model], self.slots))
+                self._guards[j] = self._peaks[-1]
         for j, t in enumerate(apn.transitions):
             if t.condition.unless:          # the skill loader checked that they are transitions of the net
                 others = [own[apn.transition_index(u)] for u in t.condition.unless]
-                self._guards[j] = _yielding(own[j], others)
+                self._guards[j] = _yielding(self._guards[j], others)
         self._n_slots = n_slots
         self._pre_cols = [[(apn.place_index(p), w) for p, w in t.inputs.items()] for t in apn.transitions]
         self._post_cols = [[(apn.place_index(p), w) for p, w in t.outputs.items()] for t in apn.transitions]
@@ -160,6 +171,8 @@ class NetRunner:
         n = len(self._guards)
         self.enabled_ticks = [0] * n
         self.held_ticks = [0] * n
+        for p in getattr(self, "_peaks", ()):
+            p.reset()
         self._refresh_enabled()
 
     def _refresh_enabled(self) -> None:
@@ -288,6 +301,41 @@ class NetRunner:
 
     def fire_counts(self) -> dict[str, int]:
         return {t: int(self.values[s]) for t, s in zip(self.apn.transition_ids, self._fires_slot)}
+
+
+class _PeakGuard:
+    """A learned switch condition that fires at the peak of its decision, not on entering its region.
+
+    Learned from the mentor's switches, the region where the condition holds spans all of them, and
+    a trajectory entering it first meets its edge: the earliest moment any switch was seen, not the
+    typical one. Along each passage through the region (consecutive ticks where it holds) this
+    guard holds from the first tick whose decision is no higher than the tick before: the state most
+    like the mentor's switches on that passage, one control step late, until the passage ends. A
+    passage that leaves the region passes its peak inside it, so the condition fires on every
+    passage that entering would fire on. Ticks the transition was not enabled break the passage.
+    """
+
+    def __init__(self, runner: NetRunner, model: LearnedCondition, slots: Mapping[str, int]):
+        self.runner, self.model = runner, model
+        self.threshold = float(model.threshold)     # type: ignore[attr-defined]
+        self._get = operator.itemgetter(*[slots[n] for n in model.input_names])
+        self._buf = np.empty(len(model.input_names))
+        self.reset()
+
+    def reset(self) -> None:
+        self._tick, self._last, self._held = -2, -math.inf, False
+
+    def __call__(self, v: list[float]) -> bool:
+        t = self.runner.tick_index
+        if t == self._tick:                          # asked again in the same tick
+            return self._held
+        got = self._get(v)
+        self._buf[:] = got if len(self._buf) > 1 else (got,)
+        d = float(self.model.decision(self._buf))   # type: ignore[attr-defined]
+        inside = d > self.threshold and self._tick == t - 1
+        self._held = inside and (self._held or d <= self._last)
+        self._tick, self._last = t, d
+        return self._held
 
 
 def _yielding(guard: Callable[[list[float]], bool], others: list[Callable[[list[float]], bool]]
