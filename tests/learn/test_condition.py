@@ -87,7 +87,29 @@ def test_save_load_and_net_wiring(tmp_path, fitted):
     runner = NetRunner(apn, ["theta", "omega", "x", "xdot"], learned={"t1_learned": back}, rng=0)
     assert runner.tick([np.pi, 0.0, 0.0, 0.0], 0.0) == ["t0"]            # token into P1
     assert runner.tick([1.5, 4.0, 0.0, 0.0], 0.1) == []                 # far from upright: no switch
-    assert runner.tick([0.03, 0.2, 0.0, 0.0], 0.2) == ["t1"]            # near upright: switch
+    assert runner.tick([0.03, 0.2, 0.0, 0.0], 0.2) == []                # near upright: its decision rises
+    assert runner.tick([0.03, 0.2, 0.0, 0.0], 0.201) == ["t1"]          # ... and no longer: switch
+    assert back.at_peak
+
+
+def test_a_condition_saved_without_the_peak_setting_fires_on_entering(tmp_path, fitted):
+    """Files written before conditions fired at their peak run as they did when they were written."""
+    import json
+    cond, _, _ = fitted
+    path = tmp_path / "old.npz"
+    cond.save(path)
+    with np.load(path, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    header = json.loads(str(arrays["__format__"]))
+    del header["meta"]["at_peak"]
+    arrays["__format__"] = np.array(json.dumps(header))
+    np.savez(path, **arrays)
+    old = load_condition(path, input_names=NAMES)
+    assert not old.at_peak
+    apn, _ = set_condition(load_skill("pendulum"), "t1", {"model": "t1_learned"}, "test")
+    runner = NetRunner(apn, ["theta", "omega", "x", "xdot"], learned={"t1_learned": old}, rng=0)
+    runner.tick([np.pi, 0.0, 0.0, 0.0], 0.0)
+    assert runner.tick([0.03, 0.2, 0.0, 0.0], 0.2) == ["t1"]            # on entering
 
 
 def test_corrupt_or_mismatched_condition_file(tmp_path, fitted):

@@ -120,6 +120,54 @@ def test_learned_condition_model_is_called():
     assert r.tick([0.05, 0.05, 0, 0], 0.001) == ["t1"]
 
 
+class _Bump:
+    """A learned switch condition whose decision peaks at theta = 0 and holds for |theta| < 0.3."""
+
+    input_names = ("theta",)
+    threshold = 0.0
+
+    def __init__(self, at_peak):
+        self.at_peak = at_peak
+
+    def decision(self, x):
+        return 0.3 - abs(float(x[0]))
+
+    def __call__(self, x):
+        return self.decision(x) > self.threshold
+
+
+def _switch_tick(at_peak, thetas):
+    from multiform.petri.revision import set_condition
+    apn, _ = set_condition(load_skill("pendulum_strict"), "t1", {"model": "sw"}, "test")
+    r = NetRunner(apn, ["theta", "omega", "x", "xdot"], learned={"sw": _Bump(at_peak)}, rng=0)
+    assert r.tick([3.0, 0.0, 0, 0], 0.0) == ["t0"]
+    for k, th in enumerate(thetas, start=1):
+        if r.tick([th, 0.0, 0, 0], k * 1e-3) == ["t1"]:
+            return k
+    return None
+
+
+def test_a_learned_switch_fires_at_the_peak_of_its_decision_not_on_entering_its_region():
+    approach = [0.5, 0.25, 0.1, 0.02, -0.05, -0.2, -0.5]          # through the region, peak at 0.02
+    assert _switch_tick(False, approach) == 2                       # entering: |theta| = 0.25
+    assert _switch_tick(True, approach) == 5                        # the tick after the peak
+    assert _switch_tick(True, [0.5, 0.25, 0.1, 0.1, 0.1]) == 4      # a state that stays: no longer rising
+    # a passage still rising when it left fires on the tick after, as entering would have fired on it
+    assert _switch_tick(True, [0.5, 0.28, 0.25, 0.5, 0.6]) == 4
+    # a passage broken by a reset starts again
+    assert _switch_tick(True, [0.5]) is None
+
+
+def test_a_learned_switch_fires_on_each_passage_after_a_reset():
+    from multiform.petri.revision import set_condition
+    apn, _ = set_condition(load_skill("pendulum_strict"), "t1", {"model": "sw"}, "test")
+    r = NetRunner(apn, ["theta", "omega", "x", "xdot"], learned={"sw": _Bump(True)}, rng=0)
+    for _ in range(2):
+        r.reset()
+        fired = [r.tick([th, 0.0, 0, 0], k * 1e-3) for k, th in enumerate([3.0, 0.2, 0.1, 0.15])]
+        assert fired == [["t0"], [], [], ["t1"]]
+
+
 def test_concurrent_tokens():
     # Two tokens in P0 feed two branches that join; a P/T net, not a state machine.
     ps = (Place("P0"), Place("A"), Place("B"), Place("end", final="success"))

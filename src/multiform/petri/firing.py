@@ -309,10 +309,11 @@ class _PeakGuard:
     Learned from the mentor's switches, the region where the condition holds spans all of them, and
     a trajectory entering it first meets its edge: the earliest moment any switch was seen, not the
     typical one. Along each passage through the region (consecutive ticks where it holds) this
-    guard holds from the first tick whose decision is no higher than the tick before: the state most
-    like the mentor's switches on that passage, one control step late, until the passage ends. A
-    passage that leaves the region passes its peak inside it, so the condition fires on every
-    passage that entering would fire on. Ticks the transition was not enabled break the passage.
+    guard holds from the first tick whose decision is no higher than the tick before (the state most
+    like the mentor's switches on that passage was the tick before: one control step late, as at
+    any peak found by looking) until the passage ends. The first tick after a passage that was still
+    rising when it left counts as such a tick, so the condition fires on every passage that entering
+    would fire on. Ticks the transition was not enabled break the passage.
     """
 
     def __init__(self, runner: NetRunner, model: LearnedCondition, slots: Mapping[str, int]):
@@ -332,8 +333,12 @@ class _PeakGuard:
         got = self._get(v)
         self._buf[:] = got if len(self._buf) > 1 else (got,)
         d = float(self.model.decision(self._buf))   # type: ignore[attr-defined]
-        inside = d > self.threshold and self._tick == t - 1
-        self._held = inside and (self._held or d <= self._last)
+        if self._tick != t - 1:                      # the passage is broken (or this is its first tick)
+            self._held = False
+        elif self._held:                              # past the peak: holds while still inside
+            self._held = d > self.threshold
+        else:                                         # the tick before was the peak
+            self._held = self._last > self.threshold and d <= self._last
         self._tick, self._last = t, d
         return self._held
 
