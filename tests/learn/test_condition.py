@@ -87,9 +87,16 @@ def test_save_load_and_net_wiring(tmp_path, fitted):
     runner = NetRunner(apn, ["theta", "omega", "x", "xdot"], learned={"t1_learned": back}, rng=0)
     assert runner.tick([np.pi, 0.0, 0.0, 0.0], 0.0) == ["t0"]            # token into P1
     assert runner.tick([1.5, 4.0, 0.0, 0.0], 0.1) == []                 # far from upright: no switch
-    assert runner.tick([0.03, 0.2, 0.0, 0.0], 0.2) == []                # near upright: its decision rises
+    assert runner.tick([0.03, 0.2, 0.0, 0.0], 0.2) == ["t1"]            # near upright: switch
+    cond.at_peak = True
+    cond.save(path)
+    peak = load_condition(path, input_names=NAMES)
+    assert peak.at_peak
+    runner = NetRunner(apn, ["theta", "omega", "x", "xdot"], learned={"t1_learned": peak}, rng=0)
+    runner.tick([np.pi, 0.0, 0.0, 0.0], 0.0)
+    assert runner.tick([0.03, 0.2, 0.0, 0.0], 0.2) == []                # its decision rises
     assert runner.tick([0.03, 0.2, 0.0, 0.0], 0.201) == ["t1"]          # ... and no longer: switch
-    assert back.at_peak
+    cond.at_peak = False
 
 
 def test_a_condition_saved_without_the_peak_setting_fires_on_entering(tmp_path, fitted):
@@ -101,6 +108,10 @@ def test_a_condition_saved_without_the_peak_setting_fires_on_entering(tmp_path, 
     with np.load(path, allow_pickle=False) as z:
         arrays = {k: z[k] for k in z.files}
     header = json.loads(str(arrays["__format__"]))
+    header["meta"]["at_peak"] = True
+    arrays["__format__"] = np.array(json.dumps(header))
+    np.savez(path, **arrays)
+    assert load_condition(path, input_names=NAMES).at_peak
     del header["meta"]["at_peak"]
     arrays["__format__"] = np.array(json.dumps(header))
     np.savez(path, **arrays)

@@ -13,11 +13,13 @@ Fitting (scikit-learn, offline): inputs standardised, RBF ``SVC`` with ``class_w
 Evaluation (the net, every tick): ``__call__(x) -> bool`` and ``decision(x)`` run through
 :class:`~.fast_svm.FastDecision` (one compiled loop per state). ``threshold`` trades false positives (firing where
 the mentor would not) against misses: the condition holds where ``decision(x) > threshold``;
-:meth:`LearnedCondition.threshold_for` picks one for a target false-positive rate. With ``at_peak``
-(the default) the net fires it at the peak of its decision along each passage through that region
-rather than on entering it (:class:`multiform.petri.firing.NetRunner`): a switch is a moment, and the
-region spans every moment the mentor switched at, so its edge is the earliest of them, not the typical
-one. Files saved without the setting fire on entering, as they did when they were written.
+:meth:`LearnedCondition.threshold_for` picks one for a target false-positive rate. The net fires it on
+entering that region, or with ``at_peak`` at the peak of its decision along each passage through it
+(:class:`multiform.petri.firing.NetRunner`; :func:`first_firing` is the same rule on a recorded run):
+a switch is a moment, and where the mentor switched anywhere along a spread of moments the region spans
+them all, so its edge is the earliest of them, not the typical one. Which rule a fitted condition uses
+is read off the demonstrations (:func:`switch_lags`). Files saved without the setting fire on entering,
+as they did when they were written.
 """
 
 from __future__ import annotations
@@ -52,7 +54,7 @@ class LearnedCondition(BaseEstimator):
 
     def __init__(self, input_names: Sequence[str] = (), C: float = 10.0, gamma: float | str = "scale",
                  threshold: float = 0.0, max_support: int = 500, max_train: int = 4000,
-                 class_weight: Any = "balanced", random_state: int = 0, at_peak: bool = True):
+                 class_weight: Any = "balanced", random_state: int = 0, at_peak: bool = False):
         self.input_names = input_names
         self.C = C
         self.gamma = gamma
@@ -235,3 +237,46 @@ def switch_windows(apn: Any, episodes: Sequence[Any], transition: str, names: Se
 def window_hits(cond: Any, windows: Sequence[tuple[int, int, np.ndarray]]) -> np.ndarray:
     """Per window of :func:`switch_windows`: whether ``cond`` holds at some state of it (False if empty)."""
     return np.array([bool(len(W)) and bool(cond.holds(W).any()) for _, _, W in windows], dtype=bool)
+
+
+def first_firing(decision: np.ndarray, threshold: float, at_peak: bool) -> int:
+    """Where a learned condition first fires along consecutive ticks' decision values (-1: nowhere).
+
+    On entering: the first value above ``threshold``. ``at_peak``: the first value no higher than the
+    one before it, which was above ``threshold`` (the net's rule, one tick after the peak).
+    """
+    d = np.asarray(decision, dtype=np.float64)
+    if at_peak:
+        k = np.flatnonzero((d[:-1] > threshold) & (d[1:] <= d[:-1])) + 1
+    else:
+        k = np.flatnonzero(d > threshold)
+    return int(k[0]) if len(k) else -1
+
+
+def switch_lags(cond: Any, apn: Any, episodes: Sequence[Any], transition: str, names: Sequence[str],
+                at_peak: bool) -> np.ndarray:
+    """How long after each of the mentor's decisions to switch into ``transition`` the condition would
+    have fired by the given rule, run along the mentor's own trajectory from the start of the stay
+    the switch ended to the end of the maneuver it began (s; negative: before it; NaN: not there).
+
+    The mentor decided on what it saw its reaction time before the recorded switch: the ``lag`` its
+    maneuver's law is learned across (the robot, reacting at once, should switch where it decided).
+    """
+    from .views import stays, success_mask, value_matrix
+
+    t = apn.transition(transition)
+    inputs = set(t.inputs)
+    reaction = apn.laws[t.law].lag if t.law in apn.laws else 0.0
+    out: list[float] = []
+    for ep in episodes:
+        ok = success_mask(ep)
+        segs = [(s, e) for s, e, tag in ep.segments() if tag == transition and ok[s]]
+        if not segs:
+            continue
+        d = np.asarray(cond.decision(value_matrix(apn, ep, names)), dtype=np.float64)
+        begun = {e: s for s, e, p in stays(apn, ep.transitions) if p in inputs}
+        for s, e in segs:
+            a = begun.get(s, s)
+            k = first_firing(d[a:e], cond.threshold, at_peak)
+            out.append((a + k - s) * ep.dt + reaction if k >= 0 else np.nan)
+    return np.array(out)

@@ -29,7 +29,7 @@ from .gp import GPLaw
 from .judge import Judge
 from .labels import LabelRecord, LabelStore, records_from_episode
 from .region import PlaceRegions
-from .condition import LearnedCondition, switch_windows, window_hits
+from .condition import LearnedCondition, switch_lags, switch_windows, window_hits
 from .views import (MIRROR_SUFFIX, LawData, base_source, is_demonstration, is_mirror, law_data, mirror_episode,
                     place_episode, place_samples, switch_data, value_matrix)
 
@@ -403,6 +403,12 @@ SWITCH_GRID = ({"C": 10.0, "gamma": 1.0}, {"C": 10.0, "gamma": 3.0}, {"C": 100.0
 SWITCH_WINDOWS = (0.02, 0.05, 0.1, 0.2)     # s after a switch whose states are positives
 
 
+def _seconds(lags: np.ndarray) -> float | None:
+    """The median of switch lags that fired (s, rounded), None if none did."""
+    fired = lags[~np.isnan(lags)]
+    return round(float(np.median(fired)), 4) if len(fired) else None
+
+
 def switch_variables(apn: APN, transition: str) -> tuple[str, ...]:
     """The variables a switch condition reads: the judged variables of the place it leaves, and
     the state variables the mentor's own condition for it reads (the mentor said what matters,
@@ -436,7 +442,8 @@ def fit_switch_condition(apn: APN, episodes: Sequence[Episode], transition: str,
     held-out non-switch states stays under ``max_false_positive`` (a condition that fires early
     makes the robot switch into a maneuver it cannot finish), else the lowest such rate; ties go to
     the higher hit rate at the switches' first samples (switching as early as the mentor did), then
-    the lower false-positive rate, then the shorter window.
+    the lower false-positive rate, then the shorter window. Whether the net fires it on entering its
+    region or at the peak of its decision is chosen on the demonstrations too (:func:`~.condition.switch_lags`).
     """
     n = len(episodes)
     rng = np.random.default_rng(seed)
@@ -470,7 +477,16 @@ def fit_switch_condition(apn: APN, episodes: Sequence[Episode], transition: str,
     d = data[window]
     cond = LearnedCondition(input_names=tuple(names), random_state=seed, **params).fit_switches(d.positives,
                                                                                                 d.negatives)
+    # Fired on entering its region, the condition meets the earliest of the mentor's switching moments;
+    # at the peak of its decision, the most typical. Whichever lands nearer the mentor's own decisions
+    # to switch on the demonstrations is the rule (entering on a tie: the rule conditions always had).
+    lag = {rule: switch_lags(cond, apn, episodes, transition, names, at_peak=rule) for rule in (False, True)}
+    miss = {rule: float(np.median(np.where(np.isnan(v), np.inf, np.abs(v)))) if len(v) else np.inf
+            for rule, v in lag.items()}
+    cond.at_peak = bool(miss[True] < miss[False])
     info = {"variables": list(names), "params": params, "window": window, "moment": moment,
+            "fires": "at its peak" if cond.at_peak else "on entering",
+            "median_lag_on_entering": _seconds(lag[False]), "median_lag_at_peak": _seconds(lag[True]),
             "cv_hit_in_moment": round(hit, 4), "cv_hit_at_switches": round(exact, 4),
             "cv_holds_far_from_switches": round(fp, 4), "mentor_switches": int(len(d.switch_states)),
             "positives": int(len(d.positives)), "negatives": int(len(d.negatives)),
