@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from multiform.errors import InvalidInput
 from multiform.learn.condition import LearnedCondition, load_condition
@@ -139,3 +141,67 @@ def test_corrupt_or_mismatched_condition_file(tmp_path, fitted):
     with pytest.raises(InvalidInput, match="c.npz"):
         LearnedCondition.load(path)
     assert path.read_bytes() == b"not a zip at all"
+
+
+class _Bump:
+    """A condition on theta alone whose decision peaks at theta = 0 and is positive for |theta| < 0.3005."""
+
+    input_names = ("theta",)
+    threshold = 0.0
+
+    def decision(self, X):
+        X = np.asarray(X, dtype=float)
+        return 0.3005 - np.abs(X[..., 0]) if X.ndim > 1 else 0.3005 - abs(float(X[0]))
+
+
+def _approach(switch):
+    """theta from 1 to -0.5 rad, one mrad per 1 ms tick; the mentor swings up (t0) and switches into
+    balancing (t1) at sample ``switch``, both labelled successful."""
+    from multiform.demos.episode import Episode, SegmentLabel
+    theta = np.linspace(1.0, -0.5, 1501)
+    n = len(theta)
+    obs = np.zeros((n, 4))
+    obs[:, 0] = theta
+    return Episode(obs=obs, actions=np.zeros((n, 1)), transitions=np.array(["t0"] * switch + ["t1"] * (n - switch)),
+                   observation_names=("theta", "omega", "x", "xdot"), command_names=("v_cmd",), dt=0.001, seed=0,
+                   labels=[SegmentLabel(0, switch, "t0", True), SegmentLabel(switch, n, "t1", True)])
+
+
+def test_switch_lags_measure_each_rule_against_the_mentors_decision():
+    """Entering fires at theta = 0.3 (sample 700), the peak one tick after theta = 0 (1001); the
+    mentor decided its reaction time (t1's law, balance: 0.06 s) before its recorded switch."""
+    from multiform.learn.condition import switch_lags
+    apn = load_skill("pendulum")
+    early = [_approach(900)]                                   # switched at theta = 0.1
+    np.testing.assert_allclose(switch_lags(_Bump(), apn, early, "t1", ("theta",), False), [-0.2 + 0.06])
+    np.testing.assert_allclose(switch_lags(_Bump(), apn, early, "t1", ("theta",), True), [0.101 + 0.06])
+    late = [_approach(1060)]                                   # decided at theta = 0
+    np.testing.assert_allclose(switch_lags(_Bump(), apn, late, "t1", ("theta",), True), [0.001], atol=1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-1.0, 1.0), min_size=2, max_size=30))
+def test_first_firing_is_the_nets_rule(decisions):
+    """The rule run on a recorded sequence fires where the net, ticking through it, fires."""
+    from multiform.learn.condition import first_firing
+
+    class Seq:
+        input_names = ("theta",)
+        threshold = 0.0
+        at_peak = True
+
+        def decision(self, x):
+            return float(x[0])
+
+        def __call__(self, x):
+            return float(x[0]) > 0.0
+
+    apn, _ = set_condition(load_skill("pendulum_strict"), "t1", {"model": "seq"}, "test")
+    runner = NetRunner(apn, ["theta", "omega", "x", "xdot"], learned={"seq": Seq()}, rng=0)
+    runner.tick([3.0, 0.0, 0.0, 0.0], 0.0)                        # t0: the token into P1
+    fired = -1
+    for k, d in enumerate(decisions):
+        if runner.tick([d, 0.0, 0.0, 0.0], (k + 1) * 1e-3) == ["t1"]:
+            fired = k
+            break
+    assert fired == first_firing(np.array(decisions), 0.0, True)
