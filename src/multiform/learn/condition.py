@@ -142,8 +142,8 @@ class LearnedCondition(BaseEstimator):
         arrays, dmeta = self.decision_.to_arrays()
         meta = {"input_names": list(self.input_names), "threshold": self.threshold, "C": self.C,
                 "gamma": self.gamma, "max_support": self.max_support, "max_train": self.max_train,
-                "random_state": self.random_state, "at_peak": self.at_peak, "n_train": self.n_train_, "fit_rounds": self.fit_rounds_,
-                "train_rates": self.train_rates_, "decision": dmeta}
+                "random_state": self.random_state, "at_peak": self.at_peak, "n_train": self.n_train_,
+                "fit_rounds": self.fit_rounds_, "train_rates": self.train_rates_, "decision": dmeta}
         save_npz(path, arrays, meta, KIND, VERSION)
 
     @classmethod

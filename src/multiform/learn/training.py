@@ -481,9 +481,9 @@ def fit_switch_condition(apn: APN, episodes: Sequence[Episode], transition: str,
     # at the peak of its decision, the most typical. Whichever lands nearer the mentor's own decisions
     # to switch on the demonstrations is the rule (entering on a tie: the rule conditions always had).
     lag = {rule: switch_lags(cond, apn, episodes, transition, names, at_peak=rule) for rule in (False, True)}
-    miss = {rule: float(np.median(np.where(np.isnan(v), np.inf, np.abs(v)))) if len(v) else np.inf
-            for rule, v in lag.items()}
-    cond.at_peak = bool(miss[True] < miss[False])
+    off = {rule: float(np.median(np.where(np.isnan(v), np.inf, np.abs(v)))) if len(v) else np.inf
+           for rule, v in lag.items()}
+    cond.at_peak = bool(off[True] < off[False])
     info = {"variables": list(names), "params": params, "window": window, "moment": moment,
             "fires": "at its peak" if cond.at_peak else "on entering",
             "median_lag_on_entering": _seconds(lag[False]), "median_lag_at_peak": _seconds(lag[True]),

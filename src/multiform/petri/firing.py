@@ -171,7 +171,7 @@ class NetRunner:
         n = len(self._guards)
         self.enabled_ticks = [0] * n
         self.held_ticks = [0] * n
-        for p in getattr(self, "_peaks", ()):
+        for p in self._peaks:
             p.reset()
         self._refresh_enabled()
 
