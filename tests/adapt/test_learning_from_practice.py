@@ -101,6 +101,10 @@ def test_a_refit_reports_mentor_and_own_samples_apart_with_error_before_and_afte
     _, capped = fit_law(apn, mentor, "swing_up", seed=0, own=store.law_episodes("swing_up"),
                         settings=LawSettings(own_ratio=0.1))
     assert (capped["n_mentor"], capped["n_own"]) == (1200, 120)
+    # own samples that are none of them new to the mentor's law give no refit, when one is asked for
+    none, info = fit_law(apn, mentor, "swing_up", seed=0, own=store.law_episodes("swing_up"), mentor_law=first,
+                         settings=LawSettings(own_novelty=1e9), own_required=True)
+    assert none is None and info["n_own"] == 0 and "heldout_nrmse" not in info
 
 
 def test_a_skill_at_its_target_is_not_refitted(tmp_path):

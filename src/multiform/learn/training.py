@@ -80,7 +80,8 @@ class LawSettings:
 def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool = True,
             heldout: float = 0.2, seed: int = 0, settings: LawSettings | None = None,
             own: Sequence[Episode] = (), own_apn: APN | None = None, current: GPLaw | None = None,
-            mentor_law: GPLaw | None = None, fusion: Fusion | None = None) -> tuple[GPLaw, dict[str, Any]]:
+            mentor_law: GPLaw | None = None, fusion: Fusion | None = None, own_required: bool = False
+            ) -> tuple[GPLaw | None, dict[str, Any]]:
     """Fit one law; returns the law (refit on all its data) and a summary with held-out NRMSE.
 
     ``own`` are the robot's own practice episodes whose labels mark the segments it graded
@@ -92,6 +93,9 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
     ``mentor_law`` (the law fitted on the mentor's data alone) and ``settings.own_novelty`` > 0, only
     the own samples where that law is unsure join (:func:`novel_samples`). With ``fusion`` (several
     mentors, :mod:`.fusion`), each mentor's samples of a transition are kept with its weight there.
+    With ``own_required``, own episodes of which no sample joins give no law (None, and the summary
+    without the fits): the data is what the current law was fitted on, so a refit would only redraw
+    its fitting noise, at the cost of a fit.
     """
     s = settings or LawSettings()
     masks = fusion.sample_masks(episodes, seed) if fusion is not None else None
@@ -127,6 +131,8 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
         summary.update(n_mentor=int(n_mentor), n_own=int(len(data.X) - n_mentor), n_own_offered=int(n_offered),
                        own_ratio=s.own_ratio, own_novelty=s.own_novelty,
                        own_episodes=int(np.sum(demos >= len(episodes))))
+        if own_required and summary["n_own"] == 0:
+            return None, summary
     if len(demos) >= 2 and heldout > 0:
         tr_d, te_d = split_episodes(len(demos), heldout, seed)
         tr = np.flatnonzero(np.isin(data.episode, demos[tr_d]))

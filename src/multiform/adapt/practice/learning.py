@@ -161,8 +161,9 @@ class Learning:
         return bool(p < REVERT_P)
 
     def refit(self, state: PracticeState) -> None:
-        """Refit each law that has new own segments since its fit; one ``refit_law`` revision each,
-        watched together. Only a skill whose plain trials show it falls short of the target is
+        """Refit each law that has new own segments since its fit, of which some samples are new to
+        the law (:func:`~multiform.learn.training.fit_law`, ``own_required``); one ``refit_law``
+        revision each, watched together. Only a skill whose plain trials show it falls short of the target is
         refitted (:meth:`falls_short`): an exam of ``revert_window`` replayed trials cannot see a
         refit cost a few points, so a skill already near its target has more to lose than to gain."""
         ctx, cfg = self.ctx, self.ctx.config
@@ -186,7 +187,10 @@ class Learning:
             refitted, info = fit_law(mentor_net, model.episodes + list(takeovers.values()), law,
                                      seed=cfg.seed, own=own, own_apn=apn, current=model.laws(apn).get(law),
                                      mentor_law=model.laws(mentor_net).get(law),
-                                     settings=LawSettings(own_novelty=cfg.novelty), fusion=model.fusion())
+                                     settings=LawSettings(own_novelty=cfg.novelty), fusion=model.fusion(),
+                                     own_required=not new_takeovers)
+            if refitted is None:        # none of its own samples is new to the law: nothing to refit on
+                continue
             fit = ctx.learners.fresh_law(law)
             model.save_law(fit, refitted)
             evidence = {"own_segments": len(mine), "new_own_segments": len(new), "own_trials": len(own),
