@@ -123,7 +123,8 @@ class NetRunner:
         self._peaks: list[_PeakGuard] = []
         for j, t in enumerate(apn.transitions):
             if t.condition.is_learned and getattr(learned[t.condition.model], "at_peak", False):
-                self._peaks.append(_PeakGuard(self, learned[t.condition.model], self.slots))
+                model = learned[t.condition.model]
+                self._peaks.append(_PeakGuard(self, model, self._reader(model)))
                 self._guards[j] = self._peaks[-1]
         for j, t in enumerate(apn.transitions):
             if t.condition.unless:          # the skill loader checked that they are transitions of the net
@@ -138,7 +139,8 @@ class NetRunner:
         self._final = {apn.place_index(p): kind for p, kind in apn.final_places.items()}
         self.reset()
 
-    def _learned_guard(self, model: LearnedCondition) -> Callable[[list[float]], bool]:
+    def _reader(self, model: LearnedCondition) -> Callable[[list[float]], np.ndarray]:
+        """A function that loads ``model``'s inputs from the value slots into one reused array."""
         unknown = [n for n in model.input_names if n not in self.slots]
         if unknown:
             raise InvalidInput(f"learned condition reads unknown variable(s) {', '.join(unknown)}",
@@ -147,14 +149,18 @@ class NetRunner:
         getter = operator.itemgetter(*idx)
         buf = np.empty(len(idx))
         if len(idx) == 1:
-            def guard(v: list[float]) -> bool:
+            def read(v: list[float]) -> np.ndarray:
                 buf[0] = v[idx[0]]
-                return bool(model(buf))
+                return buf
         else:
-            def guard(v: list[float]) -> bool:
+            def read(v: list[float]) -> np.ndarray:
                 buf[:] = getter(v)
-                return bool(model(buf))
-        return guard
+                return buf
+        return read
+
+    def _learned_guard(self, model: LearnedCondition) -> Callable[[list[float]], bool]:
+        read = self._reader(model)
+        return lambda v: bool(model(read(v)))
 
     # -- trial lifecycle -------------------------------------------------------------------------
     def reset(self) -> None:
@@ -316,11 +322,9 @@ class _PeakGuard:
     would fire on. Ticks the transition was not enabled break the passage.
     """
 
-    def __init__(self, runner: NetRunner, model: LearnedCondition, slots: Mapping[str, int]):
-        self.runner, self.model = runner, model
+    def __init__(self, runner: NetRunner, model: LearnedCondition, read: Callable[[list[float]], np.ndarray]):
+        self.runner, self.model, self._read = runner, model, read
         self.threshold = float(model.threshold)     # type: ignore[attr-defined]
-        self._get = operator.itemgetter(*[slots[n] for n in model.input_names])
-        self._buf = np.empty(len(model.input_names))
         self.reset()
 
     def reset(self) -> None:
@@ -330,9 +334,7 @@ class _PeakGuard:
         t = self.runner.tick_index
         if t == self._tick:                          # asked again in the same tick
             return self._held
-        got = self._get(v)
-        self._buf[:] = got if len(self._buf) > 1 else (got,)
-        d = float(self.model.decision(self._buf))   # type: ignore[attr-defined]
+        d = float(self.model.decision(self._read(v)))   # type: ignore[attr-defined]
         if self._tick != t - 1:                      # the passage is broken (or this is its first tick)
             self._held = False
         elif self._held:                              # past the peak: holds while still inside

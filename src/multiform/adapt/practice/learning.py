@@ -163,8 +163,8 @@ class Learning:
     def refit(self, state: PracticeState) -> None:
         """Refit each law that has new own segments since its fit, of which some samples are new to
         the law (:func:`~multiform.learn.training.fit_law`, ``own_required``); one ``refit_law``
-        revision each, watched together. Only a skill whose plain trials show it falls short of the target is
-        refitted (:meth:`falls_short`): an exam of ``revert_window`` replayed trials cannot see a
+        revision each, watched together. Only a skill whose plain trials show it falls short of the
+        target is refitted (:meth:`falls_short`): an exam of ``revert_window`` replayed trials cannot see a
         refit cost a few points, so a skill already near its target has more to lose than to gain."""
         ctx, cfg = self.ctx, self.ctx.config
         model = ctx.model
