@@ -202,6 +202,12 @@ CASES: list[tuple[str, Callable[[Path], tuple[list[str], str]]]] = [
     # -- model directories --------------------------------------------------------------------------
     ("practice_not_a_model", lambda w: do([*M, str(w / "cwd")], "skill.yaml")),
     ("practice_unknown_scenario", lambda w: do([*M, str(w / "model"), "--scenario", "zz"], "zz")),
+    # reset options the env refuses: refused before the first trial writes a practice state
+    ("practice_unknown_reset_option", lambda w: do([*M, str(w / "model"), "--options", '{"lenght": 0.3}'], "lenght")),
+    ("practice_reset_option_out_of_range", lambda w: do([*M, str(w / "model"), "--options", '{"length": -1}'],
+                                                        "options")),
+    ("evaluate_unknown_reset_option", lambda w: do(["evaluate", str(w / "model"), "--trials", "2", "--options",
+                                                    '{"lenght": 0.3}', "-o", "ev"], "lenght")),
     ("model_json_not_json", lambda w: do((w / "model" / "model.json").write_text("{"), [*M, str(w / "model")],
                                          "model.json")),
     ("model_json_list", lambda w: do((w / "model" / "model.json").write_text("[]"), [*M, str(w / "model")],

@@ -157,7 +157,7 @@ def practise(model: Any, task: TaskLike | None = None, scenario: str | None = No
     task = _task_of(model, task)
     index, sc = _scenario(task, scenario)
     if options:
-        sc = sc.with_options(_reset_options(options))
+        sc = sc.with_options(_reset_options(options, model, task))
     folder = Path(out) if out is not None else Path(model.path) / "practice" / sc.name
     practice = sc.practice(model, folder, max_trials, seed + index, observe=observe(folder) if observe else None)
     return practice.run(progress=progress, stop_after=stop_after)
@@ -194,7 +194,7 @@ def evaluate(model: Any, task: TaskLike | None = None, trials: int = 200, seed: 
         check_writable(target if Path(out).is_dir() else Path(out))      # the folder is made at the end
     specs = task.evaluation_specs(trials, seed, push_fraction)
     if options:
-        extra = _reset_options(options)
+        extra = _reset_options(options, model, task, specs[0].options if specs else None)
         specs = [replace(s, options={**s.options, **extra}) for s in specs]
     variant = Variant(f"{model.apn.name} v{model.version if version is None else version}",
                       str(Path(model.path).resolve()), net_version=version, env_modules=model.env_modules)
@@ -301,13 +301,23 @@ def _task_or_none(find: Callable[[str], Task], env_id: str) -> Task | None:
         return None
 
 
-def _reset_options(options: Mapping[str, Any]) -> dict[str, Any]:
-    """Reset options given by a caller, checked as plain bounded data."""
+def _reset_options(options: Mapping[str, Any], model: Any, task: Task,
+                   base: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """Reset options given by a caller, checked as plain bounded data and then by the model's env
+    itself (one reset over the task's own options ``base``, default its first trial's), so that an
+    option the env refuses is reported before a trial runs or anything is written."""
     from .io import plain_data_problems
     problems = plain_data_problems(dict(options), "options")
     if problems:
         where, msg = problems[0]
         raise InvalidInput(msg, element=where)
+    env = model.make_env()
+    try:
+        env.reset(seed=0, options={**(task.trial_options(0) if base is None else base), **options})
+    except (ValueError, TypeError, KeyError) as exc:
+        raise InvalidInput(f"the env refuses them: {exc}", element="options") from None
+    finally:
+        env.close()
     return dict(options)
 
 
