@@ -202,6 +202,7 @@ CASES: list[tuple[str, Callable[[Path], tuple[list[str], str]]]] = [
     # -- model directories --------------------------------------------------------------------------
     ("practice_not_a_model", lambda w: do([*M, str(w / "cwd")], "skill.yaml")),
     ("practice_unknown_scenario", lambda w: do([*M, str(w / "model"), "--scenario", "zz"], "zz")),
+    ("draw_unknown_picture_format", lambda w: do(["draw", "pendulum", "-o", "net.txt"], "net.txt")),
     # reset options the env refuses: refused before the first trial writes a practice state
     ("practice_unknown_reset_option", lambda w: do([*M, str(w / "model"), "--options", '{"lenght": 0.3}'], "lenght")),
     ("practice_reset_option_out_of_range", lambda w: do([*M, str(w / "model"), "--options", '{"length": -1}'],

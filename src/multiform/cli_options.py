@@ -184,7 +184,7 @@ def _add_net_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
                    help="time budget of the analysis (its memory is bounded too); an unfinished graph fails the check")
     p.set_defaults(func=h["check"])
 
-    p = sub.add_parser("draw", help="draw a skill's net (SVG/PNG by suffix)")
+    p = sub.add_parser("draw", help="draw a skill's net (SVG, PNG, PDF or DOT by suffix)")
     p.add_argument("skill", help="skill file, bundled skill name or model directory")
     p.add_argument("--out", "-o", help="output file (default: NET_NAME.svg in the current folder)")
     p.add_argument("--history", help="revision history (default: SKILL.history.jsonl beside the skill)")

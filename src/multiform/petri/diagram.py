@@ -10,8 +10,11 @@ from pathlib import Path
 
 import graphviz
 
+from ..errors import InvalidInput
 from ..io import atomic_path
 from .net import APN
+
+FORMATS = ("svg", "png", "pdf", "dot")      # what a picture of a net is written as, by its file's suffix
 
 CHANGED = "#d95f02"      # what a revision added or changed
 SUCCESS = "#1b9e77"
@@ -81,9 +84,12 @@ def to_graph(apn: APN, marking: Mapping[str, int] | None = None, changed: Iterab
 
 def draw(apn: APN, path: str | os.PathLike, marking: Mapping[str, int] | None = None,
          changed: Iterable[str] = (), title: str | None = None) -> Path:
-    """Render ``apn`` to ``path``; the suffix (``.svg``, ``.png``, ``.pdf``) picks the format."""
+    """Render ``apn`` to ``path``; the suffix (one of :data:`FORMATS`, none: SVG) picks the format."""
     path = Path(path)
-    fmt = path.suffix.lstrip(".") or "svg"
+    fmt = path.suffix.lstrip(".").lower() or "svg"
+    if fmt not in FORMATS:
+        raise InvalidInput(f"unknown picture format {path.suffix!r}; give a file ending in "
+                           + ", ".join(f".{f}" for f in FORMATS), file=str(path))
     data = to_graph(apn, marking, changed, title).pipe(format=fmt)
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
