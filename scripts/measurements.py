@@ -61,7 +61,7 @@ SECTIONS = (
     Section("components", "The learned components",
             "Held-out accuracy of what training learns: the control laws, the judges, the learned "
             "conditions; and how a law's fit shows in closed loop.",
-            ("bench_laws", "bench_judges", "bench_condition", "bench_gp", "bench_law_fits")),
+            ("bench_laws", "bench_judges", "bench_condition", "bench_switch_settings", "bench_gp", "bench_law_fits")),
     Section("speed", "Latency and throughput",
             "What the 1 kHz control path costs on one core, how fast the simulations and whole trials run, "
             "and the evaluation backends.",

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import warnings
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -433,6 +433,24 @@ def switch_variables(apn: APN, transition: str) -> tuple[str, ...]:
     return tuple(names) or tuple(apn.variables)
 
 
+def switch_condition(apn: APN, episodes: Sequence[Episode], transition: str, names: Sequence[str], data: Any,
+                     params: Mapping[str, float], seed: int = 0) -> tuple[LearnedCondition, dict[bool, np.ndarray]]:
+    """The switch condition of one setting: an SVM with ``params`` on the switch ``data``
+    (:func:`~.views.switch_data` of ``episodes``), and its firing rule; returns it with the switch
+    lags of both rules along the demonstrations (:func:`~.condition.switch_lags`, keyed by ``at_peak``).
+
+    Fired on entering its region, the condition meets the earliest of the mentor's switching moments;
+    at the peak of its decision, the most typical. Whichever lands nearer the mentor's own decisions to
+    switch on the demonstrations is the rule (entering on a tie: the rule conditions always had)."""
+    cond = LearnedCondition(input_names=tuple(names), random_state=seed, **params).fit_switches(data.positives,
+                                                                                                data.negatives)
+    lag = {rule: switch_lags(cond, apn, episodes, transition, names, at_peak=rule) for rule in (False, True)}
+    off = {rule: float(np.median(np.where(np.isnan(v), np.inf, np.abs(v)))) if len(v) else np.inf
+           for rule, v in lag.items()}
+    cond.at_peak = bool(off[True] < off[False])
+    return cond, lag
+
+
 def fit_switch_condition(apn: APN, episodes: Sequence[Episode], transition: str, names: Sequence[str],
                          seed: int = 0, max_false_positive: float = 0.01, folds: int = 3,
                          windows: Sequence[float] = SWITCH_WINDOWS, moment: float = 0.1
@@ -481,15 +499,7 @@ def fit_switch_condition(apn: APN, episodes: Sequence[Episode], transition: str,
     window, params, hit, exact, fp = (max(ok, key=lambda s: (s[2], s[3], -s[4], -s[0])) if ok
                                       else min(scores, key=lambda s: s[4]))
     d = data[window]
-    cond = LearnedCondition(input_names=tuple(names), random_state=seed, **params).fit_switches(d.positives,
-                                                                                                d.negatives)
-    # Fired on entering its region, the condition meets the earliest of the mentor's switching moments;
-    # at the peak of its decision, the most typical. Whichever lands nearer the mentor's own decisions
-    # to switch on the demonstrations is the rule (entering on a tie: the rule conditions always had).
-    lag = {rule: switch_lags(cond, apn, episodes, transition, names, at_peak=rule) for rule in (False, True)}
-    off = {rule: float(np.median(np.where(np.isnan(v), np.inf, np.abs(v)))) if len(v) else np.inf
-           for rule, v in lag.items()}
-    cond.at_peak = bool(off[True] < off[False])
+    cond, lag = switch_condition(apn, episodes, transition, names, d, params, seed)
     info = {"variables": list(names), "params": params, "window": window, "moment": moment,
             "fires": "at its peak" if cond.at_peak else "on entering",
             "median_lag_on_entering": _seconds(lag[False]), "median_lag_at_peak": _seconds(lag[True]),
