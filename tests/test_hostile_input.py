@@ -283,6 +283,13 @@ CASES: list[tuple[str, Callable[[Path], tuple[list[str], str]]]] = [
     ("replay_fps_zero", lambda w: do(["replay", str(w / "demos.h5"), "--fps", "0"], "--fps")),
     ("replay_not_a_trace", lambda w: do((w / "t.npz").write_bytes(b"junk"), ["replay", str(w / "t.npz")], "t.npz")),
     ("demos_export_missing", lambda w: do(["demos", "export", str(w / "none.h5"), "-o", "lr"], "none.h5")),
+    # --overwrite replaces a folder of what the command writes, never a folder of something else
+    ("demos_export_overwrite_a_foreign_folder", lambda w: do((w / "mine").mkdir(), (w / "mine" / "notes.txt").write_text("x"),
+                                                             ["demos", "export", str(w / "demos.h5"), "-o", str(w / "mine"),
+                                                              "--overwrite"], "meta/info.json")),
+    ("train_overwrite_a_foreign_folder", lambda w: do((w / "mine").mkdir(), (w / "mine" / "notes.txt").write_text("x"),
+                                                      ["train", "pendulum", str(w / "demos.h5"), "-o", str(w / "mine"),
+                                                       "--overwrite"], "model.json")),
     ("demos_import_not_a_dataset", lambda w: do(["demos", "import", str(w / "run"), "-o", "d.h5"], "run")),
     ("demo_out_under_a_file", lambda w: do(["demo", "pendulum", "--demos", "2", "-o", str(w / "demos.h5" / "run")],
                                            "run")),
@@ -745,6 +752,18 @@ def test_evaluate_runs_the_models_task_and_writes_every_trial(work, capsys):
     assert data["task"] == "pendulum" and data["trials"] == 4 and len(data["trials_detail"]) == 4
     assert [t["seed"] for t in data["trials_detail"]] == [s.seed for s in task.evaluation_specs(4, 0, 0.5)]
     assert {"outcome", "self_success", "duration", "pushed"} <= set(data["trials_detail"][0])
+
+
+def test_overwrite_replaces_an_output_folder_of_its_own_kind_or_an_empty_one(work):
+    pytest.importorskip("pyarrow")
+    demos = str(work / "demos.h5")
+    assert run(["demos", "export", demos, "-o", "lr", "--fps", "100"]) == 0
+    first = (Path("lr") / "meta" / "info.json").read_text()
+    assert run(["demos", "export", demos, "-o", "lr", "--overwrite"]) == 0           # its own: replaced
+    assert (Path("lr") / "meta" / "info.json").read_text() != first
+    Path("empty").mkdir()
+    assert run(["demos", "export", demos, "-o", "empty", "--overwrite"]) == 0        # nothing to lose
+    assert (Path("empty") / "meta" / "info.json").is_file()
 
 
 @pytest.mark.parametrize("artifact", ["inverse_model.npz", "condition"])

@@ -98,7 +98,7 @@ def train(skill: str | os.PathLike, demos: str | os.PathLike, out: str | os.Path
     task = load_task(task) if task is not None else None     # first: a user's task registers its env
     load_skill(skill)
     ds = read_dataset(demos)
-    final = _new_output(out, overwrite, "folder")
+    final = _new_output(out, overwrite, "folder", marker="model.json")
     trainer, env_kwargs = None, ds.env_kwargs
     if inverse_model:                          # decided before anything is written
         task = task or _task_or_none(task_for_env, ds.env_name)
@@ -230,7 +230,7 @@ def export_demos(demos: str | os.PathLike, out: str | os.PathLike, fps: float | 
     from .demos.dataset import read_dataset
     from .demos.lerobot import write_lerobot
     ds = read_dataset(demos)
-    final = _new_output(out, overwrite, "folder")
+    final = _new_output(out, overwrite, "folder", marker="meta/info.json")
     target = final.with_name(f".{final.name}.replacing") if final.exists() else final
     write_lerobot(target, ds.episodes, ds.skill, ds.env_name, ds.env_kwargs, task=task_text, fps=fps)
     if target != final:
@@ -261,9 +261,10 @@ def import_demos(dataset: str | os.PathLike, out: str | os.PathLike, variables: 
 
 # -- helpers ---------------------------------------------------------------------------------------
 
-def _new_output(path: str | os.PathLike, overwrite: bool, kind: str) -> Path:
+def _new_output(path: str | os.PathLike, overwrite: bool, kind: str, marker: str = "") -> Path:
     """``path`` as a new output: refused when it exists and ``overwrite`` is not set, or when it is
-    a folder where a file is wanted (or the reverse)."""
+    a folder where a file is wanted (or the reverse). A folder is replaced only if it is empty or
+    holds ``marker`` (what the command writes there: a folder of anything else is not its to delete)."""
     path = Path(path)
     if path.exists() or path.is_symlink():
         if not overwrite:
@@ -272,6 +273,9 @@ def _new_output(path: str | os.PathLike, overwrite: bool, kind: str) -> Path:
         if (kind == "file") == path.is_dir():
             raise InvalidInput(f"exists and is a {'folder' if path.is_dir() else 'file'}; give a {kind} name",
                                file=str(path))
+        if marker and path.is_dir() and any(path.iterdir()) and not (path / marker).is_file():
+            raise InvalidInput(f"exists and has no {marker}: --overwrite replaces only a folder of what this "
+                               "command writes; remove it yourself or choose another name", file=str(path))
     return path
 
 

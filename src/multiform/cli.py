@@ -10,9 +10,10 @@ Conventions, the same for every sub-command:
   interrupted; 141 the reader of the output went away. An error is one line
   ``multiform: error: <culprit>: <what is wrong>``, and nothing is written.
 * **Outputs**: a command never replaces an existing output file or folder unless ``--overwrite``
-  is given, and then only once the new one is complete. Folders that a command resumes (a run
-  folder of ``demo``, a practice folder, a model directory that ``label`` adds to) are not outputs
-  to replace.
+  is given, and then only once the new one is complete; a folder only if it is empty or holds what
+  the command writes there (a model's ``model.json``, a dataset's ``meta/info.json``). Folders that a
+  command resumes (a run folder of ``demo``, a practice folder, a model directory that ``label`` adds
+  to) are not outputs to replace.
 * **Names**: ``TASK`` and ``--task`` always name a task (bundled, installed, ``package.module:NAME``
   or ``path/to/file.py:NAME``; ``module:NAME`` also finds modules in the current folder);
   ``--net-version`` a version of a net; ``--version`` is the program's version.
