@@ -194,7 +194,7 @@ def evaluate(model: Any, task: TaskLike | None = None, trials: int = 200, seed: 
         check_writable(target if Path(out).is_dir() else Path(out))      # the folder is made at the end
     specs = task.evaluation_specs(trials, seed, push_fraction)
     if options:
-        extra = _reset_options(options, model, task, specs[0].options if specs else None)
+        extra = _reset_options(options, model, task)
         specs = [replace(s, options={**s.options, **extra}) for s in specs]
     variant = Variant(f"{model.apn.name} v{model.version if version is None else version}",
                       str(Path(model.path).resolve()), net_version=version, env_modules=model.env_modules)
@@ -305,11 +305,10 @@ def _task_or_none(find: Callable[[str], Task], env_id: str) -> Task | None:
         return None
 
 
-def _reset_options(options: Mapping[str, Any], model: Any, task: Task,
-                   base: Mapping[str, Any] | None = None) -> dict[str, Any]:
+def _reset_options(options: Mapping[str, Any], model: Any, task: Task) -> dict[str, Any]:
     """Reset options given by a caller, checked as plain bounded data and then by the model's env
-    itself (one reset over the task's own options ``base``, default its first trial's), so that an
-    option the env refuses is reported before a trial runs or anything is written."""
+    itself (one reset over the task's options of a trial), so that an option the env refuses is
+    reported before a trial runs or anything is written."""
     from .io import plain_data_problems
     problems = plain_data_problems(dict(options), "options")
     if problems:
@@ -317,7 +316,7 @@ def _reset_options(options: Mapping[str, Any], model: Any, task: Task,
         raise InvalidInput(msg, element=where)
     env = model.make_env()
     try:
-        env.reset(seed=0, options={**(task.trial_options(0) if base is None else base), **options})
+        env.reset(seed=0, options={**task.trial_options(0), **options})
     except (ValueError, TypeError, KeyError) as exc:
         raise InvalidInput(f"the env refuses them: {exc}", element="options") from None
     finally:
