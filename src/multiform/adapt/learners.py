@@ -78,16 +78,26 @@ class ModelLearners:
                 self._mentor[key] = None
         return self._mentor[key]
 
-    def switch_condition(self, apn: APN, transition: str) -> tuple[str, dict[str, Any]]:
+    def fit_switch(self, apn: APN, transition: str, prefer: str = "cv") -> tuple[Any, dict[str, Any]]:
+        """The condition :meth:`switch_condition` would save, and its evidence, unsaved."""
         from ..learn.training import fit_switch_condition
         names = self.switch_variables(apn, transition)
         eps = self.switch_episodes(transition)
-        cond, info = fit_switch_condition(apn, eps, transition, names, seed=self.seed)
+        cond, info = fit_switch_condition(apn, eps, transition, names, seed=self.seed, prefer=prefer)
         if len(eps) < len(self.model.episodes):
             info["mentors"] = sorted({ep.mentor for ep in eps})
+        return cond, info
+
+    def save_switch(self, transition: str, cond: Any, info: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+        """Save a condition of :meth:`fit_switch` under a fresh name; returns it with its evidence."""
         name = self._fresh(f"{transition}_switch")
         self.model.save_condition(name, cond)
         return name, {"model": name, **info}
+
+    def switch_condition(self, apn: APN, transition: str, prefer: str = "cv") -> tuple[str, dict[str, Any]]:
+        """A condition for ``transition`` learned from the mentor's switches into it (``prefer``: which
+        setting, :func:`~multiform.learn.training.fit_switch_condition`), saved under a fresh name."""
+        return self.save_switch(transition, *self.fit_switch(apn, transition, prefer))
 
     def _regions(self) -> PlaceRegions:
         r = self.model.regions()

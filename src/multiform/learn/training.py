@@ -453,7 +453,7 @@ def switch_condition(apn: APN, episodes: Sequence[Episode], transition: str, nam
 
 def fit_switch_condition(apn: APN, episodes: Sequence[Episode], transition: str, names: Sequence[str],
                          seed: int = 0, max_false_positive: float = 0.01, folds: int = 3,
-                         windows: Sequence[float] = SWITCH_WINDOWS, moment: float = 0.1
+                         windows: Sequence[float] = SWITCH_WINDOWS, moment: float = 0.1, prefer: str = "cv"
                          ) -> tuple[LearnedCondition, dict[str, Any]]:
     """Learn when the mentor switches into ``transition`` (the paper's relearned t1 condition).
 
@@ -468,7 +468,15 @@ def fit_switch_condition(apn: APN, episodes: Sequence[Episode], transition: str,
     the higher hit rate at the switches' first samples (switching as early as the mentor did), then
     the lower false-positive rate, then the shorter window. Whether the net fires it on entering its
     region or at the peak of its decision is chosen on the demonstrations too (:func:`~.condition.switch_lags`).
+
+    ``prefer="smooth"`` takes instead the smoothest region among the settings that hold at as many
+    held-out switches as any (the longest window, then the smallest γ, then the smallest C): the
+    false-positive rate per sample favours tight regions that the robot's own trajectories, never
+    quite the mentor's, pass beside. Neither choice predicts closed-loop success well, so practice
+    examines the smooth one on its own trials (:mod:`multiform.adapt.practice.switches`).
     """
+    if prefer not in ("cv", "smooth"):
+        raise ValueError(f"prefer must be 'cv' or 'smooth', got {prefer!r}")
     n = len(episodes)
     rng = np.random.default_rng(seed)
     order = rng.permutation(n)
@@ -495,9 +503,14 @@ def fit_switch_condition(apn: APN, episodes: Sequence[Episode], transition: str,
                 scores.append((window, params, float(np.mean(hits)), float(np.mean(exact)), float(np.mean(fps))))
     if not scores:
         raise ValueError(f"too few demonstrated switches into {transition} to learn its condition")
-    ok = [s for s in scores if s[4] <= max_false_positive]
-    window, params, hit, exact, fp = (max(ok, key=lambda s: (s[2], s[3], -s[4], -s[0])) if ok
-                                      else min(scores, key=lambda s: s[4]))
+    if prefer == "smooth":
+        best = max(s[2] for s in scores)
+        window, params, hit, exact, fp = max((s for s in scores if s[2] >= best - 1e-9),
+                                             key=lambda s: (s[0], -s[1]["gamma"], -s[1]["C"]))
+    else:
+        ok = [s for s in scores if s[4] <= max_false_positive]
+        window, params, hit, exact, fp = (max(ok, key=lambda s: (s[2], s[3], -s[4], -s[0])) if ok
+                                          else min(scores, key=lambda s: s[4]))
     d = data[window]
     cond, lag = switch_condition(apn, episodes, transition, names, d, params, seed)
     info = {"variables": list(names), "params": params, "window": window, "moment": moment,
@@ -509,4 +522,6 @@ def fit_switch_condition(apn: APN, episodes: Sequence[Episode], transition: str,
             "support_vectors": int(cond.n_support_),
             "cv": [{"window": w, "params": p, "hit_in_moment": round(h, 4), "hit": round(e, 4),
                     "false_positive": round(f, 5)} for w, p, h, e, f in scores]}
+    if prefer != "cv":
+        info["prefer"] = prefer
     return cond, info

@@ -55,6 +55,7 @@ class PracticeConfig:
     floor_exam: float = -4.0            # a state σ(-4) ≈ 1/50 as likely to be in its place as at its boundary
     check_demonstrations: bool = True
     deliberate: bool = False            # exploring trials pushed or not as the robot's weaker condition asks
+    switch_exam: bool = False           # at the first shortfall, the learned switches' smoothest setting examined
     max_robot_seconds: float = 0.0      # practice stops once its trials add up to this much robot time (0: no limit)
 
     def budgets(self, takes_over: bool) -> tuple[int, int]:
@@ -82,7 +83,7 @@ class PracticeConfig:
         v = self.max_robot_seconds
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0.0 <= v <= 1e7):
             raise InvalidInput(f"must be seconds in 0..10000000, got {v!r}", element="max_robot_seconds")
-        for name in ("learn", "exam", "check_demonstrations", "deliberate"):
+        for name in ("learn", "exam", "check_demonstrations", "deliberate", "switch_exam"):
             if not isinstance(getattr(self, name), bool):
                 raise InvalidInput(f"must be true or false, got {getattr(self, name)!r}", element=name)
 

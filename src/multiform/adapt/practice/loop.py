@@ -30,6 +30,7 @@ from .floors import FloorExam
 from .learning import Learning, MentorGrader, TakeoverFn
 from .repairs import Repairs
 from .state import PracticeState, RevisionRecord, TrialRecord, state_from_json, state_to_json
+from .switches import SwitchExam
 from .watch import RevisionWatch
 
 Options = Callable[[int], Mapping[str, Any]]
@@ -43,7 +44,7 @@ class Practice:
     per trial index; see :meth:`multiform.runtime.executor.Executor.run`) and, for learning from
     practice, the ``mentor``'s grader of a trial and its ``takeover`` of a failed one
     (:class:`~.learning.Learning`). Its parts: :attr:`repairs`, :attr:`watch`, :attr:`learning`,
-    :attr:`floors`."""
+    :attr:`floors`, :attr:`switches`."""
 
     def __init__(self, model: SkillModel, folder: str | Path, config: PracticeConfig | None = None,
                  options: Options | None = None, perturb: Perturb | None = None, name: str = "practice",
@@ -63,6 +64,7 @@ class Practice:
         self.repairs = Repairs(self.ctx, self.watch, self.trace_path)
         self.learning = Learning(self.ctx, self.watch, mentor, takeover)
         self.floors = FloorExam(self.ctx, self.watch)
+        self.switches = SwitchExam(self.ctx, self.watch)
 
     # -- state -------------------------------------------------------------------------------------
     @property
@@ -235,7 +237,8 @@ class Practice:
         elif self.repairs.constant_failure(state) and not (state.watch is not None and state.watch.must_win):
             self.repairs.repair(state)
         if not state.done and self.learning.refit_due(state):
-            self.learning.refit(state)
+            if not (self.learning.falls_short(state) and self.switches.examine(state)):
+                self.learning.refit(state)
         if not state.done and state.watch is None and cfg.max_trials - state.trial <= cfg.watch_trials():
             self.floors.examine(state)
 

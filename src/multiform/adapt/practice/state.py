@@ -133,6 +133,7 @@ class PracticeState:
     last_refit_trial: int = -1
     checked: bool = False                  # the definition was held against the demonstrations
     floor_examined: bool = False           # the ways back's deeper floor was considered (``floor_exam``)
+    switch_examined: bool = False          # the learned switches' smoothest setting was examined (``switch_exam``)
     done: bool = False
     stop_reason: str = ""
     format_version: int = STATE_VERSION
