@@ -262,22 +262,48 @@ class BallInCupMentor:
     # ----------------------------------------------------------------- labels
     def label(self, episode: Episode) -> list[SegmentLabel]:
         """Success or failure of every segment, judged from the recorded observations."""
+        kinds = {"t0": "pump", "t1": "pump", "t6": "pump", "t2": "pull", "t3": "catch", "t4": "hold"}
+        return self._verdicts(episode, kinds, self.length, caught="t4", others=True)
+
+    def grade_trial(self, episode: Episode, swinging: str = "P1", pulled: str = "P2", flying: str = "P3",
+                    caught: str = "P4") -> list[SegmentLabel]:
+        """The person's verdict on each stay of a robot's trial, from the trial's trace alone.
+
+        ``episode`` is the trial seen by place (its tags are the place the robot's token was in, as
+        :func:`multiform.learn.views.place_episode` gives). The same tolerances as :meth:`label`:
+        swinging succeeded if the swing's energy grew (or was already near the aim) and a pull
+        followed, the pull if the throw was one the hand can catch, the flight if the ball landed
+        in the cup, holding if it stayed there for ``hold_time`` s. The string's length is judged
+        from the hanging ball at the trial's start, as at a demonstration's; no simulator state is read."""
+        bx, bz = episode.column("ball_x"), episode.column("ball_z")
+        length = max(0.05, math.hypot(float(bx[0]), float(bz[0])))
+        kinds = {swinging: "pump", pulled: "pull", flying: "catch", caught: "hold"}
+        return self._verdicts(episode, kinds, length, caught=caught, pumped=pulled)
+
+    def _verdicts(self, episode: Episode, kinds: dict[str, str], length: float, caught: str,
+                  pumped: str | None = None, others: bool = False) -> list[SegmentLabel]:
+        """A label for each segment whose tag ``kinds`` names (pump, pull, catch or hold), judged as
+        :meth:`label` describes (``others``: every other segment too, failed); ``caught`` is the tag
+        that follows a successful catch, ``pumped`` the one a pumping segment must lead to (None: any)."""
         bx, bz, hx = episode.column("ball_x"), episode.column("ball_z"), episode.column("hand_x")
-        e = swing_energy(bx, bz, episode.column("ball_vx"), episode.column("ball_vz"), self.length)
+        e = swing_energy(bx, bz, episode.column("ball_vx"), episode.column("ball_vz"), length)
         dt = episode.dt
         inside = (np.abs(bx) < CUP_HALF_WIDTH) & (bz > CUP_FLOOR) & (bz < CUP_RIM)
         out = []
         segs = episode.segments()
         for i, (start, end, tag) in enumerate(segs):
+            kind = kinds.get(tag, "other" if others else None)
+            if kind is None:
+                continue
             nxt = segs[i + 1][2] if i + 1 < len(segs) else None
-            if tag in ("t0", "t1", "t6"):
+            if kind == "pump":
                 grew = e[end - 1] > e[start] + 0.02 or e[end - 1] >= self.energy_aim[0] - 0.1
-                ok = grew and nxt is not None
-            elif tag == "t2":
+                ok = grew and nxt is not None and (pumped is None or nxt == pumped)
+            elif kind == "pull":
                 ok = catchable(bx[start:], bz[start:], hx[start:], dt)
-            elif tag == "t3":
-                ok = nxt == "t4"
-            elif tag == "t4":
+            elif kind == "catch":
+                ok = nxt == caught
+            elif kind == "hold":
                 ok = (end - start) * dt >= self.hold_time - 1e-9 and bool(np.all(inside[start:end]))
             else:
                 ok = False
