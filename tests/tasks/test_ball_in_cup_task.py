@@ -5,6 +5,7 @@ experimenter's check and (slow) a small end-to-end job."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -97,6 +98,15 @@ def test_the_mentor_grades_a_trial_by_place_as_it_labels_its_own_demonstrations(
                 assert by_stay[stay] == lab.success, (lab, stay)
         if ep.outcome == "success":
             assert graded[-1].transition == "P4" and graded[-1].success
+    # the robot's skill stops once the ball has rested in the cup for the task's second (1.2 s in P4):
+    # a hold that long is a success to the person, though it demonstrates longer holds itself
+    ep = next(ep for ep in demos if ep.outcome == "success")
+    start = place_episode(apn, ep).labels[-1].start
+    for held, ok in ((1.2, True), (0.9, False)):
+        n = start + int(round(held / ep.dt))
+        cut = replace(ep, obs=ep.obs[:n], actions=ep.actions[:n], transitions=ep.transitions[:n],
+                      labels=[lab for lab in ep.labels if lab.end <= n])
+        assert grade(place_episode(apn, cut), apn)[-1].success is ok
 
 
 class Watched:

@@ -54,7 +54,7 @@ from typing import Any
 
 import numpy as np
 
-from ..envs.ball_in_cup import CUP_FLOOR, CUP_HALF_WIDTH, CUP_RIM, GAINS, OBSERVATION_NAMES
+from ..envs.ball_in_cup import CUP_FLOOR, CUP_HALF_WIDTH, CUP_RIM, GAINS, OBSERVATION_NAMES, SUCCESS_HOLD
 from ..demos.episode import Episode, SegmentLabel
 from ..teach.kinesthetic import GuidingHand
 from .mistakes import draw_mistake
@@ -273,18 +273,21 @@ class BallInCupMentor:
         :func:`multiform.learn.views.place_episode` gives). The same tolerances as :meth:`label`:
         swinging succeeded if the swing's energy grew (or was already near the aim) and a pull
         followed, the pull if the throw was one the hand can catch, the flight if the ball landed
-        in the cup, holding if it stayed there for ``hold_time`` s. The string's length is judged
+        in the cup, holding if the ball rested there for the last second of the stay, as the task
+        asks (not for its own ``hold_time``: the robot's skill stops once the task is done). The string's length is judged
         from the hanging ball at the trial's start, as at a demonstration's; no simulator state is read."""
         bx, bz = episode.column("ball_x"), episode.column("ball_z")
         length = max(0.05, math.hypot(float(bx[0]), float(bz[0])))
-        kinds = {swinging: "pump", pulled: "pull", flying: "catch", caught: "hold"}
+        kinds = {swinging: "pump", pulled: "pull", flying: "catch", caught: "rest"}
         return self._verdicts(episode, kinds, length, caught=caught, pumped=pulled)
 
     def _verdicts(self, episode: Episode, kinds: dict[str, str], length: float, caught: str,
                   pumped: str | None = None, others: bool = False) -> list[SegmentLabel]:
-        """A label for each segment whose tag ``kinds`` names (pump, pull, catch or hold), judged as
-        :meth:`label` describes (``others``: every other segment too, failed); ``caught`` is the tag
-        that follows a successful catch, ``pumped`` the one a pumping segment must lead to (None: any)."""
+        """A label for each segment whose tag ``kinds`` names (pump, pull, catch, hold: the ball in
+        the cup for ``hold_time``, or rest: in the cup for the task's last second), judged as
+        :meth:`label` and :meth:`grade_trial` describe (``others``: every other segment too, failed);
+        ``caught`` is the tag that follows a successful catch, ``pumped`` the one a pumping segment
+        must lead to (None: any)."""
         bx, bz, hx = episode.column("ball_x"), episode.column("ball_z"), episode.column("hand_x")
         e = swing_energy(bx, bz, episode.column("ball_vx"), episode.column("ball_vz"), length)
         dt = episode.dt
@@ -305,6 +308,9 @@ class BallInCupMentor:
                 ok = nxt == caught
             elif kind == "hold":
                 ok = (end - start) * dt >= self.hold_time - 1e-9 and bool(np.all(inside[start:end]))
+            elif kind == "rest":
+                need = int(np.ceil(SUCCESS_HOLD / dt - 1e-9))
+                ok = end - start >= need and bool(np.all(inside[end - need:end]))
             else:
                 ok = False
             out.append(SegmentLabel(start, end, tag, bool(ok), self.name))
