@@ -29,7 +29,7 @@ def model(hostile_lab, tmp_path) -> SkillModel:
 def _falling_short(model: SkillModel, tmp_path, **config) -> tuple[Practice, PracticeState]:
     """Twenty trials, every other one plain; four of the ten plain ones failed (a shortfall at a
     95 % target), and a refit is due."""
-    cfg = PracticeConfig(**{"switch_exam": True, "max_trials": 100, **config})
+    cfg = PracticeConfig(**{"max_trials": 100, **config})
     trials = [TrialRecord(trial=k, success=k not in (2, 8, 12, 18), net_version=model.version,
                           explored=cfg.explores(k), fired=["t0", "t1"]) for k in range(20)]
     return Practice(model, tmp_path / "p", cfg, name="c"), PracticeState(trial=20, trials=trials)
@@ -90,7 +90,7 @@ def test_the_smoother_switch_is_kept_only_if_it_wins_its_exam(model, tmp_path, o
     assert model.apn.transition("t1").condition.model == (new if kept else old)
 
 
-def test_the_switch_is_examined_once_and_only_when_asked(model, tmp_path):
+def test_the_switch_is_examined_once_by_default_and_never_when_off(model, tmp_path):
     practice, state = _falling_short(model, tmp_path, switch_exam=False)
     practice.after_trial(state)
     assert not state.switch_examined and model.version == 1
