@@ -54,7 +54,7 @@ from typing import Any
 
 import numpy as np
 
-from ..envs.ball_in_cup import CUP_FLOOR, CUP_HALF_WIDTH, CUP_RIM, GAINS, OBSERVATION_NAMES, SUCCESS_HOLD
+from ..envs.ball_in_cup import CUP_FLOOR, CUP_HALF_WIDTH, CUP_RIM, GAINS, OBSERVATION_NAMES
 from ..demos.episode import Episode, SegmentLabel
 from ..teach.kinesthetic import GuidingHand
 from .mistakes import draw_mistake
@@ -262,55 +262,23 @@ class BallInCupMentor:
     # ----------------------------------------------------------------- labels
     def label(self, episode: Episode) -> list[SegmentLabel]:
         """Success or failure of every segment, judged from the recorded observations."""
-        kinds = {"t0": "pump", "t1": "pump", "t6": "pump", "t2": "pull", "t3": "catch", "t4": "hold"}
-        return self._verdicts(episode, kinds, self.length, caught="t4", others=True)
-
-    def grade_trial(self, episode: Episode, swinging: str = "P1", pulled: str = "P2", flying: str = "P3",
-                    caught: str = "P4") -> list[SegmentLabel]:
-        """The person's verdict on each stay of a robot's trial, from the trial's trace alone.
-
-        ``episode`` is the trial seen by place (its tags are the place the robot's token was in, as
-        :func:`multiform.learn.views.place_episode` gives). The same tolerances as :meth:`label`:
-        swinging succeeded if the swing's energy grew (or was already near the aim) and a pull
-        followed, the pull if the throw was one the hand can catch, the flight if the ball landed
-        in the cup, holding if the ball rested there for the last second of the stay, as the task
-        asks (not for its own ``hold_time``: the robot's skill stops once the task is done). The string's length is judged
-        from the hanging ball at the trial's start, as at a demonstration's; no simulator state is read."""
-        bx, bz = episode.column("ball_x"), episode.column("ball_z")
-        length = max(0.05, math.hypot(float(bx[0]), float(bz[0])))
-        kinds = {swinging: "pump", pulled: "pull", flying: "catch", caught: "rest"}
-        return self._verdicts(episode, kinds, length, caught=caught, pumped=pulled)
-
-    def _verdicts(self, episode: Episode, kinds: dict[str, str], length: float, caught: str,
-                  pumped: str | None = None, others: bool = False) -> list[SegmentLabel]:
-        """A label for each segment whose tag ``kinds`` names (pump, pull, catch, hold: the ball in
-        the cup for ``hold_time``, or rest: in the cup for the task's last second), judged as
-        :meth:`label` and :meth:`grade_trial` describe (``others``: every other segment too, failed);
-        ``caught`` is the tag that follows a successful catch, ``pumped`` the one a pumping segment
-        must lead to (None: any)."""
         bx, bz, hx = episode.column("ball_x"), episode.column("ball_z"), episode.column("hand_x")
-        e = swing_energy(bx, bz, episode.column("ball_vx"), episode.column("ball_vz"), length)
+        e = swing_energy(bx, bz, episode.column("ball_vx"), episode.column("ball_vz"), self.length)
         dt = episode.dt
         inside = (np.abs(bx) < CUP_HALF_WIDTH) & (bz > CUP_FLOOR) & (bz < CUP_RIM)
         out = []
         segs = episode.segments()
         for i, (start, end, tag) in enumerate(segs):
-            kind = kinds.get(tag, "other" if others else None)
-            if kind is None:
-                continue
             nxt = segs[i + 1][2] if i + 1 < len(segs) else None
-            if kind == "pump":
+            if tag in ("t0", "t1", "t6"):
                 grew = e[end - 1] > e[start] + 0.02 or e[end - 1] >= self.energy_aim[0] - 0.1
-                ok = grew and nxt is not None and (pumped is None or nxt == pumped)
-            elif kind == "pull":
+                ok = grew and nxt is not None
+            elif tag == "t2":
                 ok = catchable(bx[start:], bz[start:], hx[start:], dt)
-            elif kind == "catch":
-                ok = nxt == caught
-            elif kind == "hold":
+            elif tag == "t3":
+                ok = nxt == "t4"
+            elif tag == "t4":
                 ok = (end - start) * dt >= self.hold_time - 1e-9 and bool(np.all(inside[start:end]))
-            elif kind == "rest":
-                need = int(np.ceil(SUCCESS_HOLD / dt - 1e-9))
-                ok = end - start >= need and bool(np.all(inside[end - need:end]))
             else:
                 ok = False
             out.append(SegmentLabel(start, end, tag, bool(ok), self.name))
