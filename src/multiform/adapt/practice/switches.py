@@ -6,9 +6,9 @@ decides, more than anything cross-validation can see, how often the robot's own 
 on held-out switches most settings hold equally often, and the per-sample false-positive rate that
 breaks the tie favours tight regions the robot's own trajectories pass beside. Only the closed loop
 tells the settings apart. So the first time the plain trials show that the skill falls short of
-its target (the test a refit waits for), before any refit, each such condition is refitted with
-the smoothest setting that holds at as many held-out switches as any, and the last plain trials are
-replayed with it. No failure pointed at the condition, so it must win its exam (as the ways back's
+its target (the test a refit waits for) with ten plain trials to replay and a failure among them,
+in place of that refit, each such condition is refitted with the smoothest setting that holds at
+as many held-out switches as any, and those trials are replayed with it. No failure pointed at the condition, so it must win its exam (as the ways back's
 floor must, :class:`~.watch.RevisionWatch`); otherwise it is reverted and the refits go on as before.
 """
 
