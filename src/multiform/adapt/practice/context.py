@@ -8,7 +8,8 @@ from typing import Any
 
 from ...model import SkillModel
 from ..learners import ModelLearners
-from ...petri.revision import Revision
+from ...petri.net import Condition
+from ...petri.revision import Revision, set_condition
 from ..experience import Experience
 from .config import PracticeConfig
 from .state import PracticeState, RevisionRecord
@@ -32,6 +33,15 @@ class Context:
                                               reason=rev.reason, after_trial=state.trial - 1, scenario=self.name,
                                               diagnosis=diagnosis))
         return rev.version
+
+    def set_learned_condition(self, state: PracticeState, transition: str, model: str, reason: str,
+                              evidence: dict[str, Any]) -> int:
+        """A recorded ``set_condition`` revision: ``transition`` fires on the learned condition
+        ``model`` from now on, yielding to the same transitions as before; returns its version."""
+        apn = self.model.apn
+        ref = Condition.learned(model, apn.transition(transition).condition.unless).to_data()
+        _, rev = set_condition(apn, transition, ref, reason, evidence)
+        return self.record(state, rev)
 
     def room_to_watch(self, state: PracticeState) -> bool:
         """Whether enough trials are left to watch a revision made now."""

@@ -18,8 +18,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ...learn.region import RegionCondition
-from ...petri.net import APN, Condition
-from ...petri.revision import set_condition
+from ...petri.net import APN
 from .config import EXAM_MARGIN
 from .context import Context
 from .state import PracticeState
@@ -79,9 +78,7 @@ class FloorExam:
 
     def set_floor(self, state: PracticeState, way: WayBack, floor: float, reason: str, evidence: dict[str, Any]) -> None:
         """A ``set_condition`` revision: way back ``way`` leaves its place below ``floor`` from now on."""
-        apn = self.ctx.model.apn
         name, info = self.ctx.learners.with_floor(way.condition, floor)
-        ref = Condition.learned(name, apn.transition(way.transition).condition.unless).to_data()
-        _, rev = set_condition(apn, way.transition, ref, reason,
-                               {**info, "floor_before": round(way.floor, 4), **evidence, "after_trial": state.trial - 1})
-        self.ctx.record(state, rev)
+        self.ctx.set_learned_condition(state, way.transition, name, reason,
+                                       {**info, "floor_before": round(way.floor, 4), **evidence,
+                                        "after_trial": state.trial - 1})

@@ -16,8 +16,6 @@ from __future__ import annotations
 
 from typing import Any
 
-from ...petri.net import Condition
-from ...petri.revision import set_condition
 from .config import EXAM_MARGIN
 from .context import Context
 from .state import PracticeState
@@ -71,16 +69,13 @@ class SwitchExam:
     def _set(self, state: PracticeState, tid: str, cond: Any, info: dict[str, Any], old: dict[str, Any],
              replayed: list[int]) -> int:
         ctx = self.ctx
-        apn = ctx.model.apn
         name, evidence = ctx.learners.save_switch(tid, cond, info)
-        ref = Condition.learned(name, apn.transition(tid).condition.unless).to_data()
         reason = (f"the skill falls short of its target: {tid}'s switch condition refitted with the smoothest "
                   f"setting that holds at as many held-out switches as any (window {info['window']} s, "
                   f"C {info['params']['C']:g}, γ {info['params']['gamma']:g}; was window {old['window']} s, "
                   f"C {old['params']['C']:g}, γ {old['params']['gamma']:g}); {len(replayed)} plain trials are "
                   f"replayed, kept only if it wins {EXAM_MARGIN} more of them than it loses, or some and loses none")
-        _, rev = set_condition(apn, tid, ref, reason,
-                               {**evidence, "before": {"model": old.get("model"), "window": old["window"],
-                                                       "params": old["params"]},
-                                "replayed_trials": replayed, "after_trial": state.trial - 1})
-        return ctx.record(state, rev)
+        return ctx.set_learned_condition(state, tid, name, reason,
+                                         {**evidence, "before": {"model": old["model"], "window": old["window"],
+                                                                 "params": old["params"]},
+                                          "replayed_trials": replayed, "after_trial": state.trial - 1})
