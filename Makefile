@@ -23,13 +23,14 @@ test-slow: $(STAMP)
 
 # LeRobot and robomimic pin torch and torchvision releases of their own (torchvision's PyPI builds
 # need the CUDA torch, which cannot sit beside the CPU torch of .venv): they get one environment of
-# their own (about 8.5 GB; built in 3-10 minutes), used only to load multiform's exports with
-# LeRobot's own LeRobotDataset and robomimic's own file_utils and SequenceDataset.
+# their own (about 8.5 GB, 5 GB of it the CUDA libraries of PyPI's torch; built in 3-10 minutes,
+# without pip's cache so that the disk holds the wheels only once), used only to load multiform's
+# exports with LeRobot's own LeRobotDataset and robomimic's own file_utils and SequenceDataset.
 INTEROP_VENV := .venv-interop
 $(INTEROP_VENV)/.installed:
 	test -x $(INTEROP_VENV)/bin/python || $(PYTHON) -m venv $(INTEROP_VENV)
-	$(INTEROP_VENV)/bin/python -m pip install -q 'lerobot==0.4.4' 'six>=1.16' 'h5py>=3.10' 'matplotlib>=3.8'
-	$(INTEROP_VENV)/bin/python -m pip install -q --no-deps robomimic==0.3.0
+	$(INTEROP_VENV)/bin/python -m pip install -q --no-cache-dir 'lerobot==0.4.4' 'six>=1.16' 'h5py>=3.10' 'matplotlib>=3.8'
+	$(INTEROP_VENV)/bin/python -m pip install -q --no-cache-dir --no-deps robomimic==0.3.0
 	touch $@
 
 test-interop: $(STAMP) $(INTEROP_VENV)/.installed
