@@ -4,7 +4,9 @@ that did not help goes back.
 A repair is on trial until the next constant failure: if no trial since it succeeded and none
 reached a place the failed trials before it never reached, it did not help — the net goes back to
 the version before it (a ``revert`` revision) and the next candidate the diagnosis supports is
-tried; a candidate is never tried twice under the same laws. Trials that ended for a reason outside
+tried; a candidate is never tried twice under the same laws. A way back is judged only by the
+failures that reached the place it leaves: if none of them ended as the failures it was added for, it
+stays (:meth:`Repairs._not_refuted`). Trials that ended for a reason outside
 the net (a fault, a diverged simulation; see :data:`~..diagnosis.EVIDENCE_OUTCOMES`) are recorded
 but are no evidence: they neither count as failures nor enter a diagnosis.
 
@@ -117,7 +119,7 @@ class Repairs:
             trying, state.trying = state.trying, None
             helped = any(t.success for t in state.trials if t.trial > trying.after_trial) \
                 or bool(d.visited - set(trying.visited))
-            if not helped and model.version == trying.version:
+            if not helped and model.version == trying.version and not self._not_refuted(state, trying):
                 failures = [t.trial for t in state.trials if t.trial > trying.after_trial and not t.success]
                 _, rev = revert(apn, trying.before_version, model.history.version(trying.before_version),
                                 f"{trying.key} did not help: {len(failures)} failed trial(s) since it, none reached a "
@@ -148,6 +150,26 @@ class Repairs:
                               visited=sorted(d.visited), failed=list(state.failed_since_repair))
         self.watch.start(state, first, model.version)
         state.failed_since_repair = []
+
+    def _not_refuted(self, state: PracticeState, trying: Trying) -> bool:
+        """A way back (``back:``) is refuted only by a failure since it that reached the place it
+        leaves and still ended as the failures it was added for did. A failure that never reached
+        that place says nothing about it; one that took it and failed further on (in the maneuver
+        it leads back to, from states that maneuver's law has not learned yet) shows it doing its
+        part, and what is left is for learning from practice and the mentor's takeovers."""
+        if not trying.key.startswith("back:"):
+            return False
+        apn = self.ctx.model.apn
+        added = {r.target for r in state.revisions if r.operator == "add_transition" and r.version is not None
+                 and trying.before_version < r.version <= trying.version and r.target in apn.transition_ids}
+        sources = {p for t in added for p in apn.transition(t).inputs}
+        if not sources or sources & set(apn.initial_marking):
+            return False
+        into = {t.id for t in apn.transitions if sources & set(t.outputs)}
+        by_trial = {t.trial: t for t in state.trials}
+        ended = {by_trial[k].fired[-1] for k in trying.failed if k in by_trial and by_trial[k].fired}
+        since = [t for t in state.trials if t.trial > trying.after_trial and not t.success and t.evidence]
+        return not any(into & set(t.fired) and t.fired and t.fired[-1] in ended for t in since)
 
     def _no_repair(self, state: PracticeState, d: Any, why: str) -> None:
         """Constant failure that changes nothing: recorded with ``why`` and the diagnosis."""
