@@ -426,3 +426,47 @@ def test_practice_fixes_what_the_demonstrations_show_before_its_first_trial(tmp_
     (rev,) = model.history.revisions()
     assert (rev.operator, rev.target, rev.evidence["candidate"]) == ("set_condition", "t1", "demonstrations:too_loose:t1")
     assert state.checked and state.revisions[0].after_trial == -1 and state.tried == []
+
+
+# -- a way back is judged by the failures that reached the place it leaves --------------------------
+
+def _way_back_on_trial(tmp_path, since):
+    """The sound net with a way back t7 (P2 -> P1) added after three falls from P2 (t5), and three
+    failures since it, each fired as ``since``."""
+    from multiform.petri.revision import add_transition
+    skill = tmp_path / "sound.yaml"
+    skill.write_text(yaml.safe_dump(skill_to_data(load_skill("pendulum"))))
+    model = SkillModel.create(tmp_path / "model", skill)
+    apn = model.apn
+    practice = Practice(model, tmp_path / "p", PracticeConfig(), name="b")
+    practice.ctx.learners = FakeLearners(mentor_evidence(apn, EPISODES))
+    spec = {"label": "back to swung up", "in": ["P2"], "out": ["P1"], "law": "swing_up", "lambda": 1.0,
+            "condition": "abs(theta) > 1.0"}
+    _, rev = add_transition(apn, "t7", spec, "test", {"candidate": "back:P2>P1"})
+    model.history.record(rev)
+    fell = [(0, "t0"), (40, "t1"), (90, "t5")]
+    trials = []
+    for k in range(6):
+        fir = fell if k < 3 else since
+        tr = make_trace(model.apn if k >= 3 else apn, fir, vals(300, 0.02), "failure")
+        tr.save(practice.trace_path(k))
+        trials.append(TrialRecord(trial=k, success=False, fired=tr.fired()))
+    state = PracticeState(trial=6, trials=trials, failed_since_repair=[3, 4, 5], tried=["back:P2>P1"],
+                          revisions=[RevisionRecord(version=1, operator="add_transition", target="t7", after_trial=2)],
+                          trying=Trying(key="back:P2>P1", before_version=0, version=1, after_trial=2,
+                                        visited=["P0", "P1", "P2"], failed=[0, 1, 2]))
+    practice.repairs.repair(state)
+    return model
+
+
+@pytest.mark.parametrize("since, stays", [
+    ([(0, "t0")] + [(20 * (k + 1), "t2") for k in range(12)] + [(290, "t4")], True),   # never caught: no evidence
+    ([(0, "t0"), (40, "t1"), (90, "t7")] + [(100 + 10 * k, "t2") for k in range(12)] + [(290, "t4")], True),  # took it
+    ([(0, "t0"), (40, "t1"), (90, "t5")], False),                                       # fell from P2 as before
+])
+def test_a_way_back_is_refuted_only_by_failures_that_reached_its_place_and_ended_as_before(tmp_path, since, stays):
+    model = _way_back_on_trial(tmp_path, since)
+    ops = [(r.operator, r.target) for r in model.history.revisions()]
+    assert ops[0] == ("add_transition", "t7")
+    assert (("revert", "version 0") not in ops) == stays
+    assert ("t7" in model.apn.transition_ids) == stays
