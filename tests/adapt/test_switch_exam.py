@@ -60,7 +60,7 @@ def test_at_the_first_shortfall_the_smoothest_setting_of_a_learned_switch_is_exa
     assert rev.evidence["params"]["gamma"] == min(s["params"]["gamma"] for s in tied if s["window"] == rev.evidence["window"])
     # the last ten plain trials are replayed; the change must win (no failure pointed at it)
     plain = [t.trial for t in state.trials if not t.explored][-10:]
-    assert state.watch.draws == plain and state.watch.must_win
+    assert state.watch.draws == plain and state.watch.must_win and state.watch.by_margin
     assert model.conditions()[model.apn.transition("t1").condition.model] is not None
     # a killed practice resumes the exam where it was
     practice.save_state(state)
@@ -77,6 +77,8 @@ BEFORE = [True, False, True, True, False, True, False, True, True, False]     # 
     ([False] * 10, False),                  # lost six
     (BEFORE, False),                        # the same trials: nothing won
     ([False, True] + BEFORE[2:], False),    # won one, lost one
+    (BEFORE[:1] + [True] + BEFORE[2:], False),                       # won one, lost none: chance
+    (BEFORE[:1] + [True] + BEFORE[2:4] + [True] + BEFORE[5:], True),  # won two, lost none
 ])
 def test_the_smoother_switch_is_kept_only_if_it_wins_its_exam(model, tmp_path, outcomes, kept):
     practice, state = _falling_short(model, tmp_path)

@@ -101,6 +101,7 @@ class Watch:
     before: list[bool] = field(default_factory=list)
     draws: list[int] | None = None
     must_win: bool = False                 # a change no failure asked for: kept only if it wins
+    by_margin: bool = False                # ... by EXAM_MARGIN trials: one trial won is what chaos gives
     then_stop: str | None = None           # practice stops after the exam, for this reason
 
 

@@ -8,8 +8,9 @@ breaks the tie favours tight regions the robot's own trajectories pass beside. O
 tells the settings apart. So the first time the plain trials show that the skill falls short of
 its target (the test a refit waits for) with ten plain trials to replay and a failure among them,
 in place of that refit, each such condition is refitted with the smoothest setting that holds at
-as many held-out switches as any, and those trials are replayed with it. No failure pointed at the condition, so it must win its exam (as the ways back's
-floor must, :class:`~.watch.RevisionWatch`); otherwise it is reverted and the refits go on as before.
+as many held-out switches as any, and those trials are replayed with it. No failure pointed at the
+condition, so it must win its exam by :data:`~.config.EXAM_MARGIN` trials (one replayed trial won or
+lost is what chaos in a swing-up gives); otherwise it is reverted and the refits go on as before.
 """
 
 from __future__ import annotations
@@ -63,7 +64,7 @@ class SwitchExam:
         if not made:
             return False
         state.last_refit_trial = state.trial - 1
-        self.watch.start(state, first, ctx.model.version, replay, must_win=True)
+        self.watch.start(state, first, ctx.model.version, replay, must_win=True, by_margin=True)
         return True
 
     def _set(self, state: PracticeState, tid: str, cond: Any, info: dict[str, Any], old: dict[str, Any],
@@ -74,7 +75,7 @@ class SwitchExam:
                   f"setting that holds at as many held-out switches as any (window {info['window']} s, "
                   f"C {info['params']['C']:g}, γ {info['params']['gamma']:g}; was window {old['window']} s, "
                   f"C {old['params']['C']:g}, γ {old['params']['gamma']:g}); {len(replayed)} plain trials are "
-                  f"replayed, kept only if it wins {EXAM_MARGIN} more of them than it loses, or some and loses none")
+                  f"replayed, kept only if it wins {EXAM_MARGIN} more of them than it loses")
         return ctx.set_learned_condition(state, tid, name, reason,
                                          {**evidence, "before": {"model": old["model"], "window": old["window"],
                                                                  "params": old["params"]},

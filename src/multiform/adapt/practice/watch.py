@@ -27,7 +27,8 @@ class RevisionWatch:
         self.ctx = ctx
 
     def start(self, state: PracticeState, before_version: int, version: int,
-              trials: list[TrialRecord] | None = None, must_win: bool = False, then_stop: str | None = None) -> None:
+              trials: list[TrialRecord] | None = None, must_win: bool = False, then_stop: str | None = None,
+              by_margin: bool = False) -> None:
         """Watch the revisions up to ``version``: compared over the next plain trials with the plain
         trials before them (``trials``: these instead of the last ``revert_window``). Only while
         practice learns."""
@@ -36,7 +37,8 @@ class RevisionWatch:
             return
         last = state.plain()[-cfg.revert_window:] if trials is None else trials
         state.watch = Watch(before_version=before_version, version=version, after_trial=state.trial - 1,
-                            before=[bool(t.success) for t in last], must_win=must_win, then_stop=then_stop,
+                            before=[bool(t.success) for t in last], must_win=must_win, by_margin=by_margin,
+                            then_stop=then_stop,
                             draws=[t.drawn for t in last] if cfg.exam else None)
 
     @staticmethod
@@ -91,11 +93,15 @@ class RevisionWatch:
     def _paired_verdict(self, state: PracticeState, w: Watch, after: list[bool]) -> None:
         """Revert the examined revision if it lost :data:`~.config.EXAM_MARGIN` more of the replayed
         trials than it won; one that must win (``must_win``: a change no failure asked for) unless
-        it won that many more than it lost, or won some and lost none."""
+        it won that many more than it lost, or (unless ``by_margin``) won some and lost none."""
         before = w.before
         lost = sum(b and not a for b, a in zip(before, after))
         won = sum(a and not b for b, a in zip(before, after))
-        if (won - lost >= EXAM_MARGIN or (won and not lost)) if w.must_win else (lost - won < EXAM_MARGIN):
+        if w.must_win:
+            kept = won - lost >= EXAM_MARGIN or bool(won and not lost and not w.by_margin)
+        else:
+            kept = lost - won < EXAM_MARGIN
+        if kept:
             return
         self._revert(state, w, f"the same {len(after)} trials replayed after version {w.version}: {sum(before)} -> "
                                f"{sum(after)} successes ({lost} lost, {won} won)",
