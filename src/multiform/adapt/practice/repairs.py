@@ -169,7 +169,7 @@ class Repairs:
         by_trial = {t.trial: t for t in state.trials}
         ended = {by_trial[k].fired[-1] for k in trying.failed if k in by_trial and by_trial[k].fired}
         since = [t for t in state.trials if t.trial > trying.after_trial and not t.success and t.evidence]
-        return not any(into & set(t.fired) and t.fired and t.fired[-1] in ended for t in since)
+        return not any(into & set(t.fired) and t.fired[-1] in ended for t in since)
 
     def _no_repair(self, state: PracticeState, d: Any, why: str) -> None:
         """Constant failure that changes nothing: recorded with ``why`` and the diagnosis."""
