@@ -160,17 +160,18 @@ class Learning:
         p = binomtest(failures, len(current), 1.0 - cfg.target_rate, alternative="greater").pvalue
         return bool(p < REVERT_P)
 
-    def refit(self, state: PracticeState) -> None:
+    def refit(self, state: PracticeState) -> bool:
         """Refit each law that has new own segments since its fit, of which some samples are new to
         the law (:func:`~multiform.learn.training.fit_law`, ``own_required``); one ``refit_law``
         revision each, watched together. Only a skill whose plain trials show it falls short of the
         target is refitted (:meth:`falls_short`): an exam of ``revert_window`` replayed trials cannot see a
-        refit cost a few points, so a skill already near its target has more to lose than to gain."""
+        refit cost a few points, so a skill already near its target has more to lose than to gain.
+        Returns whether a law was refitted."""
         ctx, cfg = self.ctx, self.ctx.config
         model = ctx.model
         state.last_refit_trial = state.trial - 1
         if cfg.target_rate > 0 and not self.falls_short(state):
-            return
+            return False
         apn = model.apn
         segments = ctx.experience.segments()
         takeovers = ctx.experience.takeovers() if self.takeover_budget else {}
@@ -208,6 +209,7 @@ class Learning:
             apn = model.apn
         if made:
             self.watch.start(state, made[0] - 1, made[-1])
+        return bool(made)
 
     def _fitted_sources(self, law: str, key: str = "sources") -> set[str]:
         """The trials whose own segments (``key`` "takeovers": whose takeovers) the last recorded
