@@ -1,5 +1,5 @@
-"""A learned switch's smoothest setting, examined on replayed trials at a shortfall the laws' refits
-did not cure (``switch_exam``) and kept only if it wins."""
+"""A learned switch's smoothest setting, examined on replayed trials at the skill's first shortfall
+(``switch_exam``) and kept only if it wins."""
 
 from __future__ import annotations
 
@@ -9,7 +9,6 @@ import pytest
 
 from multiform.adapt.learners import ModelLearners
 from multiform.adapt.practice import Practice, PracticeConfig, PracticeState, TrialRecord
-from multiform.adapt.practice.state import RevisionRecord
 from multiform.adapt.practice.switches import learned_switches
 from multiform.model import SkillModel
 from multiform.petri.revision import set_condition
@@ -67,29 +66,6 @@ def test_at_the_first_shortfall_the_smoothest_setting_of_a_learned_switch_is_exa
     practice.save_state(state)
     state = practice.load_state()
     assert state.switch_examined and state.watch.must_win and practice.watch.exam_draw(state) == plain[0]
-
-
-def test_the_laws_are_refitted_first_and_the_exam_waits_for_the_next_shortfall(model, tmp_path, monkeypatch):
-    """The exam takes the place of a refit only after the laws had theirs: a refit learns from the
-    robot's own graded trials, the exam is a change no failure pointed at."""
-    practice, state = _falling_short(model, tmp_path)
-    refits = []
-
-    def refit(state):
-        refits.append(state.trial)
-        state.last_refit_trial = state.trial - 1
-        state.revisions.append(RevisionRecord(version=None, operator="refit_law", target="swing", after_trial=state.trial - 1))
-        return True
-
-    monkeypatch.setattr(practice.learning, "refit", refit)
-    practice.after_trial(state)
-    assert refits == [20] and not state.switch_examined and model.version == 1
-    for ok in BEFORE:                                      # the refitted skill still falls short
-        state.trials.append(TrialRecord(trial=state.trial, success=ok, net_version=1, fired=["t0", "t1"]))
-        state.trial += 1
-    practice.after_trial(state)
-    assert refits == [20] and state.switch_examined and model.version == 2
-    assert model.history.revisions()[-1].evidence["prefer"] == "smooth"
 
 
 BEFORE = [True, False, True, True, False, True, False, True, True, False]     # the ten plain trials replayed

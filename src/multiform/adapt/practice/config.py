@@ -22,7 +22,7 @@ class PracticeConfig:
     refitting every ten trials where the plain trials fall short of ``target_rate``, each revision
     examined on the same trials replayed (``exam``), the mentor's time (``mentor_trials``) split
     between grading trials and taking over failed ones, the ways back's floor examined at the end,
-    and a learned switch's smoothest setting examined at a shortfall the refits did not cure (``switch_exam``).
+    and a learned switch's smoothest setting examined at the first shortfall (``switch_exam``).
     :data:`REPAIR_ONLY` is practice that only repairs (the paper's two scenarios).
 
     Constant failure: ``failures_in_a_row`` failed trials in a row, or (if ``window`` > 0) at least
@@ -56,7 +56,7 @@ class PracticeConfig:
     floor_exam: float = -4.0            # a state σ(-4) ≈ 1/50 as likely to be in its place as at its boundary
     check_demonstrations: bool = True
     deliberate: bool = False            # exploring trials pushed or not as the robot's weaker condition asks
-    switch_exam: bool = True            # at a shortfall the refits did not cure, the learned switches' smoothest setting examined
+    switch_exam: bool = True            # at the first shortfall, the learned switches' smoothest setting examined
     max_robot_seconds: float = 0.0      # practice stops once its trials add up to this much robot time (0: no limit)
 
     def budgets(self, takes_over: bool) -> tuple[int, int]:

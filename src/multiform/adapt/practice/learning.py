@@ -160,18 +160,17 @@ class Learning:
         p = binomtest(failures, len(current), 1.0 - cfg.target_rate, alternative="greater").pvalue
         return bool(p < REVERT_P)
 
-    def refit(self, state: PracticeState) -> bool:
+    def refit(self, state: PracticeState) -> None:
         """Refit each law that has new own segments since its fit, of which some samples are new to
         the law (:func:`~multiform.learn.training.fit_law`, ``own_required``); one ``refit_law``
         revision each, watched together. Only a skill whose plain trials show it falls short of the
         target is refitted (:meth:`falls_short`): an exam of ``revert_window`` replayed trials cannot see a
-        refit cost a few points, so a skill already near its target has more to lose than to gain.
-        Returns whether a law was refitted."""
+        refit cost a few points, so a skill already near its target has more to lose than to gain."""
         ctx, cfg = self.ctx, self.ctx.config
         model = ctx.model
         state.last_refit_trial = state.trial - 1
         if cfg.target_rate > 0 and not self.falls_short(state):
-            return False
+            return
         apn = model.apn
         segments = ctx.experience.segments()
         takeovers = ctx.experience.takeovers() if self.takeover_budget else {}
@@ -209,7 +208,6 @@ class Learning:
             apn = model.apn
         if made:
             self.watch.start(state, made[0] - 1, made[-1])
-        return bool(made)
 
     def _fitted_sources(self, law: str, key: str = "sources") -> set[str]:
         """The trials whose own segments (``key`` "takeovers": whose takeovers) the last recorded

@@ -219,9 +219,8 @@ class Practice:
 
     def after_trial(self, state: PracticeState) -> None:
         """After a trial: judge a watched revision; stop on a success streak or the target rate (after
-        the ways back's floor exam, if due); repair on constant failure; refit the laws when due (at a
-        shortfall, the learned switches' exam once the laws were refitted or have nothing to refit
-        on); examine the ways back's floor once no room is left for another revision."""
+        the ways back's floor exam, if due); repair on constant failure; refit the laws when due;
+        examine the ways back's floor once no room is left for another revision."""
         cfg = self.config
         succ, _ = state.streak
         if cfg.learn:
@@ -238,10 +237,8 @@ class Practice:
         elif self.repairs.constant_failure(state) and not (state.watch is not None and state.watch.must_win):
             self.repairs.repair(state)
         if not state.done and self.learning.refit_due(state):
-            short = self.learning.falls_short(state)
-            if not (short and state.refitted and self.switches.examine(state)):
-                if not self.learning.refit(state) and short:
-                    self.switches.examine(state)
+            if not (self.learning.falls_short(state) and self.switches.examine(state)):
+                self.learning.refit(state)
         if not state.done and state.watch is None and cfg.max_trials - state.trial <= cfg.watch_trials():
             self.floors.examine(state)
 

@@ -157,11 +157,6 @@ class PracticeState:
         return sorted(exhausted)
 
     @property
-    def refitted(self) -> bool:
-        """The laws were refitted in this practice (kept or reverted)."""
-        return any(r.operator == "refit_law" for r in self.revisions)
-
-    @property
     def streak(self) -> tuple[int, int]:
         """(successes, failures) in a row at the end; trials that are no evidence are passed over."""
         s = f = 0

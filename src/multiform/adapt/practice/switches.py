@@ -1,18 +1,16 @@
-"""A learned switch's setting, examined on the robot's own trials at a shortfall the refits did not cure (``switch_exam``).
+"""A learned switch's setting, examined on the robot's own trials at the first shortfall (``switch_exam``).
 
 A switch condition the repair learned from the mentor's switches (an SVM, its C, γ and window of
 positives chosen by cross-validation over whole demonstrations: :func:`~multiform.learn.training.fit_switch_condition`)
 decides, more than anything cross-validation can see, how often the robot's own catches succeed:
 on held-out switches most settings hold equally often, and the per-sample false-positive rate that
 breaks the tie favours tight regions the robot's own trajectories pass beside. Only the closed loop
-tells the settings apart. So once the plain trials show that the skill falls short of its target
-(the test a refit waits for) with ten plain trials to replay and a failure among them, each such
-condition is refitted with the smoothest setting that holds at as many held-out switches as any,
-and those trials are replayed with it. The laws' refit goes first: it learns from the robot's own
-graded trials, while no failure pointed at the condition; so the exam comes at a shortfall after
-the laws were refitted (kept or reverted), or at one where they have nothing new to refit on, and
-takes the place of that refit. It must win by :data:`~.config.EXAM_MARGIN` trials (one replayed
-trial won or lost is what chaos in a swing-up gives); otherwise it is reverted and the refits go on.
+tells the settings apart. So the first time the plain trials show that the skill falls short of
+its target (the test a refit waits for) with ten plain trials to replay and a failure among them,
+in place of that refit, each such condition is refitted with the smoothest setting that holds at
+as many held-out switches as any, and those trials are replayed with it. No failure pointed at the
+condition, so it must win its exam by :data:`~.config.EXAM_MARGIN` trials (one replayed trial won or
+lost is what chaos in a swing-up gives); otherwise it is reverted and the refits go on as before.
 """
 
 from __future__ import annotations
@@ -44,7 +42,7 @@ class SwitchExam:
         self.ctx, self.watch = ctx, watch
 
     def examine(self, state: PracticeState) -> bool:
-        """Once, when called at a shortfall: give every learned switch whose
+        """Once, when called at the skill's first shortfall: give every learned switch whose
         smoothest setting differs from its own that setting, and watch it on the last
         ``revert_window`` plain trials (they must hold a failure: the exam has to win). Returns whether
         the exam started."""
