@@ -92,6 +92,21 @@ def test_the_smoother_switch_is_kept_only_if_it_wins_its_exam(model, tmp_path, o
     assert model.apn.transition("t1").condition.model == (new if kept else old)
 
 
+@pytest.mark.parametrize("outcomes, refitted", [([False] * 10, True), ([True] * 10, False)])
+def test_a_reverted_exam_lets_the_laws_refit_at_once(model, tmp_path, monkeypatch, outcomes, refitted):
+    """The shortfall that called the exam holds for the net a revert returns to: the refit the exam
+    stood in for is made on the trial the exam ends, without waiting for new plain trials to show it
+    again; a kept switch is watched as any revision and waits its turn."""
+    practice, state = _falling_short(model, tmp_path)
+    practice.after_trial(state)
+    reached = []
+    segments = practice.ctx.experience.segments
+    monkeypatch.setattr(practice.ctx.experience, "segments", lambda: reached.append(state.trial) or segments())
+    _replay(practice, state, outcomes)
+    assert model.history.revisions()[-1].operator == ("revert" if refitted else "set_condition")
+    assert reached == ([state.trial] if refitted else []) and not state.refit_now
+
+
 def test_the_switch_is_examined_once_by_default_and_never_when_off(model, tmp_path):
     practice, state = _falling_short(model, tmp_path, switch_exam=False)
     practice.after_trial(state)

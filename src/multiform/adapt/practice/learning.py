@@ -139,10 +139,12 @@ class Learning:
 
     # -- refits ------------------------------------------------------------------------------------
     def refit_due(self, state: PracticeState) -> bool:
-        """Every ``refit_every`` trials (while no exam runs), with room left to watch the refit."""
+        """Every ``refit_every`` trials (while no exam runs), or at once after a reverted switch exam
+        (``refit_now``), with room left to watch the refit."""
         cfg = self.ctx.config
         return (cfg.learn and (state.watch is None or not cfg.exam)
-                and state.trial - state.last_refit_trial - 1 >= cfg.refit_every and self.ctx.room_to_watch(state))
+                and (state.refit_now or state.trial - state.last_refit_trial - 1 >= cfg.refit_every)
+                and self.ctx.room_to_watch(state))
 
     def falls_short(self, state: PracticeState) -> bool:
         """The plain trials of the net as it is now fail more often than the target allows: the
@@ -165,11 +167,14 @@ class Learning:
         the law (:func:`~multiform.learn.training.fit_law`, ``own_required``); one ``refit_law``
         revision each, watched together. Only a skill whose plain trials show it falls short of the
         target is refitted (:meth:`falls_short`): an exam of ``revert_window`` replayed trials cannot see a
-        refit cost a few points, so a skill already near its target has more to lose than to gain."""
+        refit cost a few points, so a skill already near its target has more to lose than to gain. After a
+        reverted switch exam (``refit_now``) the shortfall that called the exam stands for the net it
+        returned to, whose own plain trials are yet to come."""
         ctx, cfg = self.ctx, self.ctx.config
         model = ctx.model
         state.last_refit_trial = state.trial - 1
-        if cfg.target_rate > 0 and not self.falls_short(state):
+        shown, state.refit_now = state.refit_now, False
+        if cfg.target_rate > 0 and not shown and not self.falls_short(state):
             return
         apn = model.apn
         segments = ctx.experience.segments()

@@ -103,6 +103,7 @@ class Watch:
     must_win: bool = False                 # a change no failure asked for: kept only if it wins
     by_margin: bool = False                # ... by EXAM_MARGIN trials: one trial won is what chaos gives
     then_stop: str | None = None           # practice stops after the exam, for this reason
+    refit_on_revert: bool = False          # a revert lets the laws refit at once (the shortfall was shown)
 
 
 @dataclass
@@ -132,6 +133,7 @@ class PracticeState:
     trying: Trying | None = None
     tried: list[str] = field(default_factory=list)
     last_refit_trial: int = -1
+    refit_now: bool = False                # the next refit is due now and need not show a shortfall again
     checked: bool = False                  # the definition was held against the demonstrations
     floor_examined: bool = False           # the ways back's deeper floor was considered (``floor_exam``)
     switch_examined: bool = False          # the learned switches' smoothest setting was examined (``switch_exam``)

@@ -10,7 +10,8 @@ its target (the test a refit waits for) with ten plain trials to replay and a fa
 in place of that refit, each such condition is refitted with the smoothest setting that holds at
 as many held-out switches as any, and those trials are replayed with it. No failure pointed at the
 condition, so it must win its exam by :data:`~.config.EXAM_MARGIN` trials (one replayed trial won or
-lost is what chaos in a swing-up gives); otherwise it is reverted and the refits go on as before.
+lost is what chaos in a swing-up gives); otherwise it is reverted and the refit it stood in for is
+made at once (the shortfall that called the exam holds for the net it returns to).
 """
 
 from __future__ import annotations
@@ -64,7 +65,8 @@ class SwitchExam:
         if not made:
             return False
         state.last_refit_trial = state.trial - 1
-        self.watch.start(state, first, ctx.model.version, replay, must_win=True, by_margin=True)
+        self.watch.start(state, first, ctx.model.version, replay, must_win=True, by_margin=True,
+                         refit_on_revert=True)
         return True
 
     def _set(self, state: PracticeState, tid: str, cond: Any, info: dict[str, Any], old: dict[str, Any],

@@ -28,17 +28,18 @@ class RevisionWatch:
 
     def start(self, state: PracticeState, before_version: int, version: int,
               trials: list[TrialRecord] | None = None, must_win: bool = False, then_stop: str | None = None,
-              by_margin: bool = False) -> None:
+              by_margin: bool = False, refit_on_revert: bool = False) -> None:
         """Watch the revisions up to ``version``: compared over the next plain trials with the plain
-        trials before them (``trials``: these instead of the last ``revert_window``). Only while
-        practice learns."""
+        trials before them (``trials``: these instead of the last ``revert_window``); with
+        ``refit_on_revert`` a paired exam that reverts them makes the laws' refit due at once. Only
+        while practice learns."""
         cfg = self.ctx.config
         if not cfg.learn:
             return
         last = state.plain()[-cfg.revert_window:] if trials is None else trials
         state.watch = Watch(before_version=before_version, version=version, after_trial=state.trial - 1,
                             before=[bool(t.success) for t in last], must_win=must_win, by_margin=by_margin,
-                            then_stop=then_stop,
+                            then_stop=then_stop, refit_on_revert=refit_on_revert,
                             draws=[t.drawn for t in last] if cfg.exam else None)
 
     @staticmethod
@@ -62,7 +63,8 @@ class RevisionWatch:
             state.watch = None
             state.last_refit_trial = max(state.last_refit_trial, state.trial - 1)
             if self.ctx.model.version == w.version and w.draws:
-                self._paired_verdict(state, w, after[:len(w.draws)])
+                if not self._paired_verdict(state, w, after[:len(w.draws)]) and w.refit_on_revert:
+                    state.refit_now = True
             self._after_exam(state, w)
             if w.then_stop:
                 state.done, state.stop_reason = True, f"{w.then_stop}, then the ways back's floor examined"
@@ -90,10 +92,11 @@ class RevisionWatch:
         if refitted and self.ctx.model.version == w.version:
             state.tried = []
 
-    def _paired_verdict(self, state: PracticeState, w: Watch, after: list[bool]) -> None:
+    def _paired_verdict(self, state: PracticeState, w: Watch, after: list[bool]) -> bool:
         """Revert the examined revision if it lost :data:`~.config.EXAM_MARGIN` more of the replayed
         trials than it won; one that must win (``must_win``: a change no failure asked for) unless
-        it won that many more than it lost, or (unless ``by_margin``) won some and lost none."""
+        it won that many more than it lost, or (unless ``by_margin``) won some and lost none.
+        Returns whether it was kept."""
         before = w.before
         lost = sum(b and not a for b, a in zip(before, after))
         won = sum(a and not b for b, a in zip(before, after))
@@ -102,11 +105,12 @@ class RevisionWatch:
         else:
             kept = lost - won < EXAM_MARGIN
         if kept:
-            return
+            return True
         self._revert(state, w, f"the same {len(after)} trials replayed after version {w.version}: {sum(before)} -> "
                                f"{sum(after)} successes ({lost} lost, {won} won)",
                      {"before": [sum(before), len(before) - sum(before)],
                       "after": [sum(after), len(after) - sum(after)], "lost": lost, "won": won, "draws": w.draws})
+        return False
 
     def _revert(self, state: PracticeState, w: Watch, reason: str, evidence: dict) -> None:
         model = self.ctx.model
