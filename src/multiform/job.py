@@ -23,6 +23,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
+from joblib import parallel_config
 from tqdm import tqdm
 
 from .evaluation import Evaluator, Variant
@@ -169,6 +170,11 @@ class Job:
                 and (who is None or episode.mentor == who))
 
     # -- 2. training ------------------------------------------------------------------------------
+    def _fitting(self) -> Any:
+        """The job's workers fit each law's hyperparameter subsets side by side (:class:`~.learn.gp.GPLaw`
+        ``n_jobs``), in training and in practice's refits: the same laws, bit for bit, sooner."""
+        return parallel_config(n_jobs=self.cfg.workers)
+
     def train(self, demos: Path) -> SkillModel:
         final = self.out / "model"
         if final.exists():                # trained by an earlier run of this job
@@ -180,8 +186,9 @@ class Job:
             model = SkillModel.create(partial, self.task.SKILL, demos, self.task.ENV_ID,
                                       self.task.robot_env_kwargs(use_inverse))
             inverse = self.task.train_inverse_model if use_inverse else None
-            train_model(model, seed=self.cfg.seed, log=self.log, inverse_trainer=inverse, beside=self.cfg.workers > 1,
-                        fusion=self.cfg.fusion)
+            with self._fitting():
+                train_model(model, seed=self.cfg.seed, log=self.log, inverse_trainer=inverse,
+                            beside=self.cfg.workers > 1, fusion=self.cfg.fusion)
         return SkillModel(final)
 
     # -- 3. practice ------------------------------------------------------------------------------
@@ -202,7 +209,8 @@ class Job:
             cfg = practice.config
             with self._bar(cfg.max_trials, f"practice {sc.name}") as bar:
                 bar.update(practice.load_state().trial)
-                state = practice.run(progress=lambda st, tr: bar.update(1))
+                with self._fitting():
+                    state = practice.run(progress=lambda st, tr: bar.update(1))
             used += len(state.trials)
             revs = [r for r in state.revisions if r.operator != "none"]
             first_ok = next((t.trial for t in state.trials if t.success), None)

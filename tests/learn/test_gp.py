@@ -267,6 +267,25 @@ def test_hyper_subsets_take_the_median_of_the_subsets_optima(tmp_path):
         GPLaw(hyper_subsets=0).fit(X, Y)
 
 
+def test_hyper_subsets_fitted_side_by_side_give_the_same_law_bit_for_bit(tmp_path):
+    """n_jobs (or a joblib parallel_config around the fit, as a job sets) only moves the subsets'
+    optimisations into worker processes: every fitted number is the sequential fit's, and the saved
+    file does not say where it ran."""
+    from joblib import parallel_config
+    X, Y = data(400)
+    kw = dict(n_hyper=100, n_restarts=1, sparse_threshold=None, hyper_subsets=3)
+    seq = GPLaw(**kw).fit(X, Y)
+    side = GPLaw(**kw, n_jobs=2).fit(X, Y)
+    with parallel_config(n_jobs=2):
+        ctx = GPLaw(**kw).fit(X, Y)
+    for g in (side, ctx):
+        for attr in ("length_scale_", "sigma_f_", "noise_", "log_marginal_likelihood_", "alpha_"):
+            np.testing.assert_array_equal(getattr(g, attr), getattr(seq, attr))
+    side.save(tmp_path / "side.npz")
+    seq.save(tmp_path / "seq.npz")
+    assert GPLaw.load(tmp_path / "side.npz").get_params() == seq.get_params()
+
+
 def test_sparse_variance_grows_away_from_the_data():
     X, Y = data(600)
     g = GPLaw(sparse_threshold=100, n_inducing=100, theta=THETA5).fit(X, Y)

@@ -71,6 +71,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from joblib import Parallel, delayed
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, check_X_y
 
@@ -101,6 +102,10 @@ class GPLaw(GPPrediction, BaseEstimator, RegressorMixin):
     input_names, output_names: variable names stored with the law (checked against the data).
     n_threads: BLAS and OpenMP threads while fitting (None: leave as is). 1 by default: on a busy
         2-core machine OpenBLAS with 2 threads made a 1,000-point Cholesky 30× slower than with 1.
+    n_jobs: processes that optimise the ``hyper_subsets`` subsets side by side (joblib; None: one,
+        unless a :func:`joblib.parallel_config` context says more, as in scikit-learn). Each
+        optimisation runs with ``n_threads`` threads wherever it runs, so the law is the same bit for
+        bit with any ``n_jobs``; on 2 cores 2 processes fit 7 subsets about 1.7× faster.
     mean: "constant" (the output mean) or "linear" (an explicit linear mean; module docstring).
     random_state: seed for the hyperparameter subset, restarts and k-means.
     fast_exp: the one-state mean (:meth:`predict_one`) takes its kernel exponentials in float32
@@ -123,7 +128,7 @@ class GPLaw(GPPrediction, BaseEstimator, RegressorMixin):
                  output_names: Sequence[str] | None = None, n_threads: int | None = 1,
                  mean: str = "constant", random_state: int = 0, fast_exp: bool = True,
                  theta: Sequence[float] | np.ndarray | None = None, subset_noise: bool = False,
-                 hyper_subsets: int = 1):
+                 hyper_subsets: int = 1, n_jobs: int | None = None):
         self.ard = ard
         self.n_hyper = n_hyper
         self.n_restarts = n_restarts
@@ -141,6 +146,7 @@ class GPLaw(GPPrediction, BaseEstimator, RegressorMixin):
         self.theta = theta
         self.subset_noise = subset_noise
         self.hyper_subsets = hyper_subsets
+        self.n_jobs = n_jobs
 
     # -- fitting ------------------------------------------------------------------------------
     def fit(self, X: np.ndarray, y: np.ndarray) -> GPLaw:
@@ -170,10 +176,11 @@ class GPLaw(GPPrediction, BaseEstimator, RegressorMixin):
         Xs, Ys = self._standardise(X, y)
         n, d = X.shape
         if theta is None:
-            fits = [optimise_hyperparameters(Xs, Ys, np.random.default_rng(self.random_state if k == 0
-                                                                            else [self.random_state, k]),
-                                             self.ard, self.n_hyper, self.n_restarts, self.max_iter)
-                    for k in range(self.hyper_subsets)]
+            fits = Parallel(n_jobs=self.n_jobs if self.hyper_subsets > 1 else 1)(
+                delayed(_optimise)(self.n_threads, Xs, Ys,
+                                   np.random.default_rng(self.random_state if k == 0 else [self.random_state, k]),
+                                   self.ard, self.n_hyper, self.n_restarts, self.max_iter)
+                for k in range(self.hyper_subsets))
             theta = np.median([t for t, _ in fits], axis=0)
             lml = float(np.median([v for _, v in fits]))
         else:
@@ -295,6 +302,16 @@ class GPLaw(GPPrediction, BaseEstimator, RegressorMixin):
         law = law_from_arrays(cls, arrays, meta, file, prefix)
         law._prepare()
         return law
+
+
+def _optimise(n_threads: int | None, *args: Any) -> tuple[np.ndarray, float]:
+    """:func:`~.gp_hyper.optimise_hyperparameters` with ``n_threads`` BLAS threads, in whichever process
+    joblib runs it: a worker's thread count is then the parent's, and so is every rounding."""
+    if n_threads is None:
+        return optimise_hyperparameters(*args)
+    from threadpoolctl import threadpool_limits
+    with threadpool_limits(limits=n_threads):
+        return optimise_hyperparameters(*args)
 
 
 def _safe_scale(s: np.ndarray) -> np.ndarray:

@@ -30,9 +30,9 @@ def law_to_arrays(law: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
             arrays[key] = value
     params = {k: (list(v) if isinstance(v, (tuple, np.ndarray)) else v) for k, v in law.get_params().items()
               if not (k == "theta" and v is None) and not (k == "subset_noise" and not v)
-              and not (k == "hyper_subsets" and v == 1)}
+              and not (k == "hyper_subsets" and v == 1) and k != "n_jobs"}
     # (files without fixed hyperparameters, subset noise or hyperparameter subsets read as before and by
-    # earlier versions)
+    # earlier versions; n_jobs says where a fit ran, not what it is)
     meta = {"params": params, "mode": law.mode_, "var_mode": law.var_mode_,
             "n_train": int(law.n_train_), "n_features": int(law.n_features_in_),
             "n_outputs": int(law.n_outputs_), "y_1d": bool(law.y_1d_),
