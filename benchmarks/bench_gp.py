@@ -3,7 +3,8 @@
 Targets (issue 4): fit with hyperparameters for n = 2,000 ≤ 10 s; one law evaluation for one state
 (5 inputs) on one core, over ≥ 10,000 calls — exact GP n = 2,000 mean p99 ≤ 25 µs; sparse GP m = 300
 built from n = 50,000, mean + variance p99 ≤ 30 µs. Also prints the exact GP's mean + variance cost
-and the n above which `GPLaw` stops computing the variance exactly on the hot path.
+and the n above which `GPLaw` stops computing the variance exactly on the hot path, and the laws'
+default fit (seven hyperparameter subsets) in one process against two (`n_jobs=2`).
 
 Data: a smooth nonlinear law of 5 state variables (pendulum-like angle, rate, cart position and
 velocity, a phase) with 2 command outputs plus noise — synthetic, so the truth is known.
@@ -88,6 +89,7 @@ def main() -> None:
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} "
           f"(other work on a shared machine inflates every figure)")
     exact, X, Y = fit_exact(rng, Xt, Yt_true, rec)
+    side_by_side(rng, rec)
     one_state(exact, X, Y, Xt, states, rng, args, rec)
     if not args.quick:
         sparse_section(rng, Xt, Yt_true, states, args, rec)
@@ -117,6 +119,32 @@ def fit_exact(rng: np.random.Generator, Xt: np.ndarray, Yt_true: np.ndarray,
                "noiseless law, per output", max(s["heldout_nrmse"]), "", values={name: v for name, v in zip(("ax", "az"), s["heldout_nrmse"])},
                section="components")
     return exact, X, Y
+
+
+def side_by_side(rng: np.random.Generator, rec: Record) -> None:
+    """The laws' default fit (seven hyperparameter subsets of 1,000 points, one restart, sparse
+    posterior: :class:`~multiform.learn.training.LawSettings`) on 5,000 points, in one process and with
+    ``n_jobs=2``: the speed-up, and that every fitted number is the same."""
+    from multiform.learn.training import LawSettings
+    s = LawSettings()
+    X, Y = sample(5000, rng)
+    kw = dict(n_hyper=s.n_hyper, n_restarts=s.n_restarts, sparse_threshold=s.sparse_threshold,
+              n_inducing=s.n_inducing, subset_noise=s.subset_noise, hyper_subsets=s.hyper_subsets, random_state=0)
+    print(f"\n== the laws' default fit ({s.hyper_subsets} hyperparameter subsets), n = 5,000: one process "
+          "against two (n_jobs=2) ==")
+    GPLaw(**kw, n_jobs=2).fit(X[:200], Y[:200])        # the worker processes start once, before timing
+    times, fits = {}, {}
+    for n_jobs in (1, 2):
+        t0 = time.perf_counter()
+        fits[n_jobs] = GPLaw(**kw, n_jobs=n_jobs).fit(X, Y)
+        times[n_jobs] = time.perf_counter() - t0
+    same = all(np.array_equal(getattr(fits[1], a), getattr(fits[2], a))
+               for a in ("length_scale_", "sigma_f_", "noise_", "alpha_"))
+    ratio = times[1] / times[2]
+    print(f"  one process {times[1]:.1f} s, two {times[2]:.1f} s: {ratio:.2f}× faster; the same law bit for bit: {same}")
+    rec.figure("fit_side_by_side", "the laws' default fit, n = 5,000: one process's time over two processes' "
+               "(n_jobs=2)", round(ratio, 2), "×", values={"one_process_s": round(times[1], 2),
+                                                             "two_processes_s": round(times[2], 2), "same_law": same})
 
 
 def one_state(exact: GPLaw, X: np.ndarray, Y: np.ndarray, Xt: np.ndarray, states: list[np.ndarray],
