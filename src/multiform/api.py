@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import InvalidInput
+from .parallel import fitting
 from .task import Scenario, Task, load_task
 
 TaskLike = Task | str
@@ -83,13 +84,14 @@ def merge_demos(demos: list[str | os.PathLike], out: str | os.PathLike, mentors:
 
 def train(skill: str | os.PathLike, demos: str | os.PathLike, out: str | os.PathLike, task: TaskLike | None = None,
           seed: int = 0, inverse_model: bool = False, overwrite: bool = False,
-          log: Callable[[str], None] = print, fusion: bool = True) -> Any:
+          log: Callable[[str], None] = print, fusion: bool = True, workers: int = 2) -> Any:
     """Fit a skill model in the directory ``out`` from the skill file and the demos: a GP law per
     maneuver, an SVM judge per judged place, the place regions, and (``inverse_model``) the
     auxiliary inverse model of ``task`` (default: the bundled or installed task whose env recorded
     the demos). The skill file's ``env:`` must be the demos' env. Demos of several mentors are
     weighed by how far each is trusted (``MODEL/mentors.json``; docs/how-it-learns.md), or pooled
-    as one mentor's with ``fusion=False``. Returns the :class:`~multiform.model.SkillModel`."""
+    as one mentor's with ``fusion=False``. ``workers`` processes fit each law's hyperparameter subsets
+    side by side (the model does not depend on it). Returns the :class:`~multiform.model.SkillModel`."""
     from .demos.dataset import read_dataset
     from .trainer import train_model
     from .model import SkillModel, staged_model_dir
@@ -110,7 +112,8 @@ def train(skill: str | os.PathLike, demos: str | os.PathLike, out: str | os.Path
     with staged_model_dir(target) as partial:
         model = SkillModel.create(partial, skill, demos, ds.env_name, env_kwargs)
         log(f"training {model.apn.name} from {len(ds)} demos into {final}")
-        train_model(model, seed=seed, log=log, inverse_trainer=trainer, beside=True, fusion=fusion)
+        with fitting(workers):
+            train_model(model, seed=seed, log=log, inverse_trainer=trainer, beside=True, fusion=fusion)
     if target != final:
         _swap_in(target, final)
     return SkillModel(final)
@@ -144,14 +147,16 @@ def run_trial(model: Any, seed: int, options: Mapping[str, Any] | None = None, t
 def practise(model: Any, task: TaskLike | None = None, scenario: str | None = None,
              out: str | os.PathLike | None = None, max_trials: int = 30, seed: int = 0,
              stop_after: int | None = None, progress: Callable[[Any, dict[str, Any]], None] | None = None,
-             observe: Callable[..., Any] | None = None, options: Mapping[str, Any] | None = None) -> Any:
+             observe: Callable[..., Any] | None = None, options: Mapping[str, Any] | None = None,
+             workers: int = 2) -> Any:
     """Practise the model through one of the task's scenarios (default: the task's first; task
     default: the bundled or installed one whose env the model runs); constant failure triggers
     diagnosis and a repair of the net, recorded as a revision. The practice folder ``out``
     (default ``MODEL/practice/SCENARIO``) is resumed where it stopped; ``stop_after`` ends this
     call after that many more trials. ``progress(state, trial)`` is called after each trial.
     ``options`` (env reset options, e.g. ``{"length": 0.24}``) override the task's in every trial:
-    practice on a changed object, which adapts the skill to it like any other practice.
+    practice on a changed object, which adapts the skill to it like any other practice. ``workers``
+    processes fit each refitted law's hyperparameter subsets side by side (the trials do not depend on it).
     Returns the :class:`~multiform.adapt.practice.PracticeState` (trials, revisions, why it stopped)."""
     model = _model(model)
     task = _task_of(model, task)
@@ -160,7 +165,8 @@ def practise(model: Any, task: TaskLike | None = None, scenario: str | None = No
         sc = sc.with_options(_reset_options(options, model, task))
     folder = Path(out) if out is not None else Path(model.path) / "practice" / sc.name
     practice = sc.practice(model, folder, max_trials, seed + index, observe=observe(folder) if observe else None)
-    return practice.run(progress=progress, stop_after=stop_after)
+    with fitting(workers):
+        return practice.run(progress=progress, stop_after=stop_after)
 
 
 def scenario_names(task: TaskLike) -> list[str]:

@@ -356,7 +356,7 @@ def cmd_label(args: argparse.Namespace) -> int:
 
 def cmd_train(args: argparse.Namespace) -> int:
     api.train(args.skill, args.demos, args.out, task=args.task, seed=args.seed, inverse_model=args.inverse_model,
-              overwrite=args.overwrite, fusion=args.fusion)
+              overwrite=args.overwrite, fusion=args.fusion, workers=args.workers)
     print(f"model ready: {args.out}")
     return 0
 
@@ -382,7 +382,7 @@ def cmd_practice(args: argparse.Namespace) -> int:
     observe = (lambda folder: _views(args, folder / "view")) if args.view is not None else None
     state = api.practise(model, args.task, scenario=args.scenario, out=args.out, max_trials=args.max_trials,
                          seed=args.seed, stop_after=args.stop_after, progress=_show_trial, observe=observe,
-                         options=args.options)
+                         options=args.options, workers=args.workers)
     print(f"{len(state.trials)} trials; {state.stop_reason or 'stopped'}")
     return 1 if state.stop_reason.startswith("fault") else 0
 

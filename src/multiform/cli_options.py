@@ -89,7 +89,8 @@ def _add_overwrite(p: argparse.ArgumentParser, what: str = "the output") -> None
 
 def _add_workers(p: argparse.ArgumentParser, default: int) -> None:
     p.add_argument("--workers", type=_count(1, 256), default=default,
-                   help="worker processes for the independent demonstrations or trials (results do not depend on it)")
+                   help="worker processes for the independent demonstrations, trials or law fits (results do not "
+                        "depend on it)")
 
 
 def _add_net_version(p: argparse.ArgumentParser, what: str) -> None:
@@ -338,6 +339,7 @@ def _add_model_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
     p.add_argument("--seed", type=_count(0, MAX_SEED), default=_default(api.train, "seed"),
                    help="random state of every fit")
     _add_fusion(p)
+    _add_workers(p, _default(api.train, "workers"))
     p.set_defaults(func=h["train"])
 
     p = sub.add_parser("practice", help="practise a trained skill; repair the net on constant failure")
@@ -356,6 +358,7 @@ def _add_model_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
                    help="the trials' seeds and the repairs' random state")
     _add_env_module(p)
     _add_view(p, "each trial (saved in the practice folder's view/)")
+    _add_workers(p, _default(api.practise, "workers"))
     p.set_defaults(func=h["practice"])
 
 

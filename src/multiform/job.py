@@ -23,7 +23,6 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
-from joblib import parallel_config
 from tqdm import tqdm
 
 from .evaluation import Evaluator, Variant
@@ -35,6 +34,7 @@ from .errors import InvalidInput, Problem
 from .io import write_json
 from .lock import exclusive
 from .model import SkillModel, staged_model_dir
+from .parallel import fitting
 from .trainer import train_model
 from . import __version__
 from .stats import evaluation_split, rate
@@ -170,11 +170,6 @@ class Job:
                 and (who is None or episode.mentor == who))
 
     # -- 2. training ------------------------------------------------------------------------------
-    def _fitting(self) -> Any:
-        """The job's workers fit each law's hyperparameter subsets side by side (:class:`~.learn.gp.GPLaw`
-        ``n_jobs``), in training and in practice's refits: the same laws, bit for bit, sooner."""
-        return parallel_config(n_jobs=self.cfg.workers)
-
     def train(self, demos: Path) -> SkillModel:
         final = self.out / "model"
         if final.exists():                # trained by an earlier run of this job
@@ -186,7 +181,7 @@ class Job:
             model = SkillModel.create(partial, self.task.SKILL, demos, self.task.ENV_ID,
                                       self.task.robot_env_kwargs(use_inverse))
             inverse = self.task.train_inverse_model if use_inverse else None
-            with self._fitting():
+            with fitting(self.cfg.workers):
                 train_model(model, seed=self.cfg.seed, log=self.log, inverse_trainer=inverse,
                             beside=self.cfg.workers > 1, fusion=self.cfg.fusion)
         return SkillModel(final)
@@ -209,7 +204,7 @@ class Job:
             cfg = practice.config
             with self._bar(cfg.max_trials, f"practice {sc.name}") as bar:
                 bar.update(practice.load_state().trial)
-                with self._fitting():
+                with fitting(self.cfg.workers):
                     state = practice.run(progress=lambda st, tr: bar.update(1))
             used += len(state.trials)
             revs = [r for r in state.revisions if r.operator != "none"]

@@ -1,4 +1,5 @@
-"""Where independent work runs: a local process pool (fork or spawn), or a Ray cluster.
+"""Where independent work runs: a local process pool (fork or spawn) or a Ray cluster, and how many
+processes fit a law (:func:`fitting`).
 
 The core never imports Ray; :func:`ray_backend` loads :mod:`multiform.cluster` only when a Ray
 address is given.
@@ -30,6 +31,15 @@ def mp_context(start_method: str | None = None) -> mp.context.BaseContext:
         raise InvalidInput(f"unknown or unavailable start method {method!r}; this platform has: "
                            f"{', '.join(mp.get_all_start_methods())}", element="start_method")
     return mp.get_context(method)
+
+
+def fitting(workers: int) -> Any:
+    """The context in which the laws are fitted with ``workers`` processes: each law's hyperparameter
+    subsets are optimised side by side (:class:`~multiform.learn.gp.GPLaw` ``n_jobs``, through joblib's
+    :func:`~joblib.parallel_config`). Every fit runs on one BLAS thread wherever it runs, so the laws
+    are the same bit for bit with any ``workers``."""
+    from joblib import parallel_config
+    return parallel_config(n_jobs=workers)
 
 
 def ray_backend() -> ModuleType:
