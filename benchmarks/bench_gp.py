@@ -165,7 +165,7 @@ def one_state(exact: GPLaw, X: np.ndarray, Y: np.ndarray, Xt: np.ndarray, states
         ref = clone(exact).set_params(fast_exp=False, theta=theta).fit(X, Y)
         Xq = np.vstack([Xt, Xt + Xt.std(0) * rng.uniform(0.5, 5, (len(Xt), 1)) * rng.normal(size=Xt.shape)])
         dev = max(np.max(np.abs(exact.predict_one(x) - ref.predict_one(x)) / exact.y_scale_) for x in Xq)
-        print(f"  float32 kernel exponentials: {'on' if exact._fast else 'off'} (probe-measured deviation "
+        print(f"  float32 kernel exponentials: {'on' if exact.fast_exp_ else 'off'} (probe-measured deviation "
               f"{exact.fast_exp_error_:.2e} of y scale; admitted ≤ 2e-4); max deviation from the float64 path "
               f"over {len(Xq)} states near and up to 5 std away: {dev:.2e} of y scale")
         t = timed("exact n=2000, mean only (predict_one)", exact.predict_one, states, args.calls, args.repeats)
