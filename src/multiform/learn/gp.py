@@ -65,6 +65,7 @@ search (:mod:`.gp_hyper`), the posterior (:mod:`.gp_posterior`) and the file for
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from collections.abc import Sequence
@@ -105,7 +106,7 @@ class GPLaw(GPPrediction, BaseEstimator, RegressorMixin):
     n_jobs: processes that optimise the ``hyper_subsets`` subsets side by side (joblib; None: one,
         unless a :func:`joblib.parallel_config` context says more, as in scikit-learn). Each
         optimisation runs with ``n_threads`` threads wherever it runs, so the law is the same bit for
-        bit with any ``n_jobs``; on 2 cores 2 processes fit 7 subsets about 1.7× faster.
+        bit with any ``n_jobs`` (``benchmarks/bench_gp.py``: 1.5× faster on 2 cores at n = 5,000).
     mean: "constant" (the output mean) or "linear" (an explicit linear mean; module docstring).
     random_state: seed for the hyperparameter subset, restarts and k-means.
     fast_exp: the one-state mean (:meth:`predict_one`) takes its kernel exponentials in float32
@@ -152,13 +153,7 @@ class GPLaw(GPPrediction, BaseEstimator, RegressorMixin):
     def fit(self, X: np.ndarray, y: np.ndarray) -> GPLaw:
         """Train the hyperparameters (unless the constructor fixed ``theta``) and solve the posterior
         on all of ``X`` (n, d), ``y`` (n,) or (n, p)."""
-        X, y = check_X_y(X, y, multi_output=True, y_numeric=True, dtype=np.float64)
-        self._check_params(X.shape[1], 1 if y.ndim == 1 else y.shape[1])
-        if self.n_threads is None:
-            return self._fit(X, y, self.theta)
-        from threadpoolctl import threadpool_limits
-        with threadpool_limits(limits=self.n_threads):
-            return self._fit(X, y, self.theta)
+        return fit_together([self], [(X, y)])[0]
 
     def _check_params(self, d: int, p: int) -> None:
         if self.mean not in MEANS:
@@ -171,20 +166,25 @@ class GPLaw(GPPrediction, BaseEstimator, RegressorMixin):
             if names is not None and len(names) != k:
                 raise ValueError(f"{what} has {len(names)} names but the data has {k} columns")
 
-    def _fit(self, X: np.ndarray, y: np.ndarray, theta: Sequence[float] | np.ndarray | None) -> GPLaw:
-        t0 = time.perf_counter()
-        Xs, Ys = self._standardise(X, y)
-        n, d = X.shape
-        if theta is None:
-            fits = Parallel(n_jobs=self.n_jobs if self.hyper_subsets > 1 else 1)(
-                delayed(_optimise)(self.n_threads, Xs, Ys,
+    def _hyper_tasks(self, Xs: np.ndarray, Ys: np.ndarray) -> list[Any]:
+        """The joblib tasks that optimise the hyperparameters, one per subset (none with ``theta``)."""
+        if self.theta is not None:
+            return []
+        return [delayed(_optimise)(self.n_threads, Xs, Ys,
                                    np.random.default_rng(self.random_state if k == 0 else [self.random_state, k]),
                                    self.ard, self.n_hyper, self.n_restarts, self.max_iter)
-                for k in range(self.hyper_subsets))
+                for k in range(self.hyper_subsets)]
+
+    def _finish(self, X: np.ndarray, Xs: np.ndarray, Ys: np.ndarray, fits: list[tuple[np.ndarray, float]],
+                t0: float) -> GPLaw:
+        """The hyperparameters (the median of the subsets' ``fits``, or the fixed ``theta``), then the
+        posterior."""
+        n, d = X.shape
+        if self.theta is None:
             theta = np.median([t for t, _ in fits], axis=0)
             lml = float(np.median([v for _, v in fits]))
         else:
-            theta = np.asarray(theta, dtype=np.float64).reshape(-1)
+            theta = np.asarray(self.theta, dtype=np.float64).reshape(-1)
             n_ell = d if self.ard else 1
             if theta.shape != (n_ell + 2,):
                 raise ValueError(f"theta must have {n_ell + 2} entries (log length scales, log σf, log σn)")
@@ -304,13 +304,40 @@ class GPLaw(GPPrediction, BaseEstimator, RegressorMixin):
         return law
 
 
+def fit_together(laws: Sequence[GPLaw], data: Sequence[tuple[np.ndarray, np.ndarray]]) -> list[GPLaw]:
+    """Fit each law on its ``(X, y)``, the hyperparameter subsets of all of them in one batch of
+    joblib tasks (the first law's ``n_jobs``): two laws of seven subsets each take seven rounds on
+    two processes instead of eight, and every law is the one its own :meth:`GPLaw.fit` gives."""
+    ready = []
+    for law, (X, y) in zip(laws, data):
+        t0 = time.perf_counter()
+        X, y = check_X_y(X, y, multi_output=True, y_numeric=True, dtype=np.float64)
+        law._check_params(X.shape[1], 1 if y.ndim == 1 else y.shape[1])
+        with _threads(law.n_threads):
+            Xs, Ys = law._standardise(X, y)
+        ready.append((law, X, Xs, Ys, law._hyper_tasks(Xs, Ys), t0))
+    tasks = [task for *_, own, _ in ready for task in own]
+    fits = Parallel(n_jobs=laws[0].n_jobs if len(tasks) > 1 else 1)(tasks) if tasks else []
+    out, k = [], 0
+    for law, X, Xs, Ys, own, t0 in ready:
+        with _threads(law.n_threads):
+            out.append(law._finish(X, Xs, Ys, fits[k:k + len(own)], t0))
+        k += len(own)
+    return out
+
+
+def _threads(n_threads: int | None) -> Any:
+    """BLAS and OpenMP limited to ``n_threads`` (None: as they are)."""
+    if n_threads is None:
+        return contextlib.nullcontext()
+    from threadpoolctl import threadpool_limits
+    return threadpool_limits(limits=n_threads)
+
+
 def _optimise(n_threads: int | None, *args: Any) -> tuple[np.ndarray, float]:
     """:func:`~.gp_hyper.optimise_hyperparameters` with ``n_threads`` BLAS threads, in whichever process
     joblib runs it: a worker's thread count is then the parent's, and so is every rounding."""
-    if n_threads is None:
-        return optimise_hyperparameters(*args)
-    from threadpoolctl import threadpool_limits
-    with threadpool_limits(limits=n_threads):
+    with _threads(n_threads):
         return optimise_hyperparameters(*args)
 
 

@@ -25,7 +25,7 @@ from ..errors import InvalidInput
 from ..petri.net import APN
 from .features import Segment
 from .fusion import Fusion
-from .gp import GPLaw
+from .gp import GPLaw, fit_together
 from .judge import Judge
 from .labels import LabelRecord, LabelStore, records_from_episode
 from .region import PlaceRegions
@@ -133,18 +133,22 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
                        own_episodes=int(np.sum(demos >= len(episodes))))
         if own_required and summary["n_own"] == 0:
             return None, summary
+    # the law on all its data and, to measure it, a probe on all but the held-out demonstrations: fitted
+    # together, so that their hyperparameter subsets share the workers (GPLaw n_jobs)
+    te = None
+    sets = []
     if len(demos) >= 2 and heldout > 0:
         tr_d, te_d = split_episodes(len(demos), heldout, seed)
         tr = np.flatnonzero(np.isin(data.episode, demos[tr_d]))
         te = np.flatnonzero(np.isin(data.episode, demos[te_d]))
-        fit_idx = subset(tr)
-        probe = make().fit(data.X[fit_idx], data.Y[fit_idx])
-        summary["heldout_nrmse"] = nrmse(probe.predict(data.X[te]), data.Y[te])
+        sets.append(subset(tr))
+    sets.append(subset(np.arange(len(data.X))))
+    *probe, law_model = fit_together([make() for _ in sets], [(data.X[i], data.Y[i]) for i in sets])
+    if te is not None:
+        summary["heldout_nrmse"] = nrmse(probe[0].predict(data.X[te]), data.Y[te])
         summary["heldout_samples"] = int(len(te))
         if current is not None:
             summary["heldout_nrmse_current"] = nrmse(current.predict(data.X[te]), data.Y[te])
-    fit_idx = subset(np.arange(len(data.X)))
-    law_model = make().fit(data.X[fit_idx], data.Y[fit_idx])
     info = law_model.summary()
     summary.update(mode=info["mode"], n_fit=info["n"], n_inducing=info["n_inducing"],
                    length_scales={k: round(v, 4) for k, v in info["length_scale"].items()},
