@@ -208,7 +208,7 @@ def sparse_section(rng: np.random.Generator, Xt: np.ndarray, Yt_true: np.ndarray
                section="components")
     best = f"the run with the lowest p99 of {args.repeats}"
     with single_thread():
-        print(f"  float32 exponentials for the sparse mean: {'on' if sparse._fast else 'off'} (probe-measured "
+        print(f"  float32 exponentials for the sparse mean: {'on' if sparse.fast_exp_ else 'off'} (probe-measured "
               f"deviation {sparse.fast_exp_error_:.2e} of y scale: FITC weights up to "
               f"{np.abs(sparse.beta_).max():.2g} cancel); the variance is float64 in every mode")
         t = timed("sparse m=300, mean only", sparse.predict_one, states, args.calls, args.repeats)
