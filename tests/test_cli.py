@@ -62,8 +62,8 @@ def test_one_set_of_defaults_shared_with_the_api_and_the_job():
 
     for path, fn, names in ((("record",), api.record, ("demos", "workers", "seed")),
                             (("evaluate",), api.evaluate, ("trials", "seed", "push_fraction", "workers")),
-                            (("practice",), api.practise, ("max_trials", "seed", "scenario")),
-                            (("train",), api.train, ("seed",)),
+                            (("practice",), api.practise, ("max_trials", "seed", "scenario", "workers")),
+                            (("train",), api.train, ("seed", "workers")),
                             (("mentor",), api.mentor_rate, ("trials", "seed", "workers"))):
         for name in names:
             assert default(path, name) == inspect.signature(fn).parameters[name].default, (path, name)

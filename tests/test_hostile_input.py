@@ -138,6 +138,9 @@ CASES: list[tuple[str, Callable[[Path], tuple[list[str], str]]]] = [
     ("train_seed_negative", lambda w: do(["train", "pendulum", str(w / "demos.h5"), "-o", "m", "--seed", "-1"],
                                          "--seed")),
     ("teleop_seed_negative", lambda w: do(["teleop", "pendulum", "-o", "t.h5", "--seed", "-2"], "--seed")),
+    ("train_workers_zero", lambda w: do(["train", "pendulum", str(w / "demos.h5"), "-o", "m", "--workers", "0"],
+                                        "--workers")),
+    ("practice_workers_zero", lambda w: do(["practice", str(w / "model"), "--workers", "0"], "--workers")),
     ("net_diff_width_tiny", lambda w: do(["net", "diff", "pendulum", "0", "0", "--width", "3"], "--width")),
     ("label_seed_text", lambda w: do(["label", str(w / "demos.h5"), "-m", str(w / "model"), "--seed", "x"], "--seed")),
     # -- skill files and nets -----------------------------------------------------------------------
