@@ -9,7 +9,7 @@ import pytest
 
 from multiform.cli import main
 from multiform.errors import InvalidInput
-from multiform.parallel import default_start_method, mp_context, ray_backend
+from multiform.parallel import default_start_method, fitting, mp_context, ray_backend
 
 
 def test_the_local_pool_forks_on_linux_and_refuses_an_unknown_start_method():
@@ -18,6 +18,18 @@ def test_the_local_pool_forks_on_linux_and_refuses_an_unknown_start_method():
     assert mp_context("spawn").get_start_method() == "spawn"
     with pytest.raises(InvalidInput, match="start method 'threads'"):
         mp_context("threads")
+
+
+def test_laws_are_fitted_with_the_workers_this_machine_has():
+    """A job's workers become the law fits' joblib processes, never more than the local cores (with
+    Ray, workers may count a whole cluster's)."""
+    import os
+
+    from joblib.parallel import get_active_backend
+    with fitting(1):
+        assert get_active_backend()[1] == 1
+    with fitting(10_000):
+        assert get_active_backend()[1] == os.cpu_count()
 
 
 def test_the_core_never_imports_ray():

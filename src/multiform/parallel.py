@@ -34,12 +34,13 @@ def mp_context(start_method: str | None = None) -> mp.context.BaseContext:
 
 
 def fitting(workers: int) -> Any:
-    """The context in which the laws are fitted with ``workers`` processes: each law's hyperparameter
-    subsets are optimised side by side (:class:`~multiform.learn.gp.GPLaw` ``n_jobs``, through joblib's
+    """The context in which the laws are fitted with ``workers`` processes (at most this machine's
+    cores: with Ray, ``workers`` may count a cluster's): each law's hyperparameter subsets are
+    optimised side by side (:class:`~multiform.learn.gp.GPLaw` ``n_jobs``, through joblib's
     :func:`~joblib.parallel_config`). Every fit runs on one BLAS thread wherever it runs, so the laws
     are the same bit for bit with any ``workers``."""
     from joblib import parallel_config
-    return parallel_config(n_jobs=workers)
+    return parallel_config(n_jobs=max(1, min(workers, os.cpu_count() or 1)))
 
 
 def ray_backend() -> ModuleType:
