@@ -65,7 +65,6 @@ search (:mod:`.gp_hyper`), the posterior (:mod:`.gp_posterior`) and the file for
 
 from __future__ import annotations
 
-import contextlib
 import os
 import time
 from collections.abc import Sequence
@@ -75,6 +74,7 @@ import numpy as np
 from joblib import Parallel, delayed
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, check_X_y
+from threadpoolctl import threadpool_limits
 
 from ..io import load_npz, save_npz
 from .gp_hyper import neg_log_marginal_likelihood, optimise_hyperparameters  # noqa: F401  (also read from here)
@@ -313,31 +313,23 @@ def fit_together(laws: Sequence[GPLaw], data: Sequence[tuple[np.ndarray, np.ndar
         t0 = time.perf_counter()
         X, y = check_X_y(X, y, multi_output=True, y_numeric=True, dtype=np.float64)
         law._check_params(X.shape[1], 1 if y.ndim == 1 else y.shape[1])
-        with _threads(law.n_threads):
+        with threadpool_limits(limits=law.n_threads):
             Xs, Ys = law._standardise(X, y)
         ready.append((law, X, Xs, Ys, law._hyper_tasks(Xs, Ys), t0))
     tasks = [task for *_, own, _ in ready for task in own]
     fits = Parallel(n_jobs=laws[0].n_jobs if len(tasks) > 1 else 1)(tasks) if tasks else []
     out, k = [], 0
     for law, X, Xs, Ys, own, t0 in ready:
-        with _threads(law.n_threads):
+        with threadpool_limits(limits=law.n_threads):
             out.append(law._finish(X, Xs, Ys, fits[k:k + len(own)], t0))
         k += len(own)
     return out
 
 
-def _threads(n_threads: int | None) -> Any:
-    """BLAS and OpenMP limited to ``n_threads`` (None: as they are)."""
-    if n_threads is None:
-        return contextlib.nullcontext()
-    from threadpoolctl import threadpool_limits
-    return threadpool_limits(limits=n_threads)
-
-
 def _optimise(n_threads: int | None, *args: Any) -> tuple[np.ndarray, float]:
     """:func:`~.gp_hyper.optimise_hyperparameters` with ``n_threads`` BLAS threads, in whichever process
     joblib runs it: a worker's thread count is then the parent's, and so is every rounding."""
-    with _threads(n_threads):
+    with threadpool_limits(limits=n_threads):     # None: as they are
         return optimise_hyperparameters(*args)
 
 
