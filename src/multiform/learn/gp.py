@@ -153,7 +153,15 @@ class GPLaw(GPPrediction, BaseEstimator, RegressorMixin):
     def fit(self, X: np.ndarray, y: np.ndarray) -> GPLaw:
         """Train the hyperparameters (unless the constructor fixed ``theta``) and solve the posterior
         on all of ``X`` (n, d), ``y`` (n,) or (n, p)."""
-        return fit_together([self], [(X, y)])[0]
+        t0 = time.perf_counter()
+        X, y = check_X_y(X, y, multi_output=True, y_numeric=True, dtype=np.float64)
+        self._check_params(X.shape[1], 1 if y.ndim == 1 else y.shape[1])
+        with threadpool_limits(limits=self.n_threads):
+            Xs, Ys = self._standardise(X, y)
+        tasks = self._hyper_tasks(Xs, Ys)
+        fits = Parallel(n_jobs=self.n_jobs if len(tasks) > 1 else 1)(tasks) if tasks else []
+        with threadpool_limits(limits=self.n_threads):
+            return self._finish(X, Xs, Ys, fits, t0)
 
     def _check_params(self, d: int, p: int) -> None:
         if self.mean not in MEANS:
@@ -205,6 +213,14 @@ class GPLaw(GPPrediction, BaseEstimator, RegressorMixin):
         self.fit_seconds_ = time.perf_counter() - t0
         self._prepare()
         return self
+
+    @property
+    def theta_(self) -> np.ndarray:
+        """The fitted hyperparameters as ``theta`` takes them (``[log l…, log σf, log σn]``, standardised
+        units): ``set_params(theta=law.theta_)`` fits another posterior with this law's kernel."""
+        check_is_fitted(self, "mode_")
+        ell = self.length_scale_ if self.ard else self.length_scale_[:1]
+        return np.log(np.concatenate([ell, [self.sigma_f_, self.noise_]]))
 
     def posterior_noise(self) -> float:
         """The noise standard deviation (standardised units) the posterior is solved with: ``noise_``, or
@@ -302,28 +318,6 @@ class GPLaw(GPPrediction, BaseEstimator, RegressorMixin):
         law = law_from_arrays(cls, arrays, meta, file, prefix)
         law._prepare()
         return law
-
-
-def fit_together(laws: Sequence[GPLaw], data: Sequence[tuple[np.ndarray, np.ndarray]]) -> list[GPLaw]:
-    """Fit each law on its ``(X, y)``, the hyperparameter subsets of all of them in one batch of
-    joblib tasks (the first law's ``n_jobs``): two laws of seven subsets each take seven rounds on
-    two processes instead of eight, and every law is the one its own :meth:`GPLaw.fit` gives."""
-    ready = []
-    for law, (X, y) in zip(laws, data):
-        t0 = time.perf_counter()
-        X, y = check_X_y(X, y, multi_output=True, y_numeric=True, dtype=np.float64)
-        law._check_params(X.shape[1], 1 if y.ndim == 1 else y.shape[1])
-        with threadpool_limits(limits=law.n_threads):
-            Xs, Ys = law._standardise(X, y)
-        ready.append((law, X, Xs, Ys, law._hyper_tasks(Xs, Ys), t0))
-    tasks = [task for *_, own, _ in ready for task in own]
-    fits = Parallel(n_jobs=laws[0].n_jobs if len(tasks) > 1 else 1)(tasks) if tasks else []
-    out, k = [], 0
-    for law, X, Xs, Ys, own, t0 in ready:
-        with threadpool_limits(limits=law.n_threads):
-            out.append(law._finish(X, Xs, Ys, fits[k:k + len(own)], t0))
-        k += len(own)
-    return out
 
 
 def _optimise(n_threads: int | None, *args: Any) -> tuple[np.ndarray, float]:

@@ -25,7 +25,7 @@ from ..errors import InvalidInput
 from ..petri.net import APN
 from .features import Segment
 from .fusion import Fusion
-from .gp import GPLaw, fit_together
+from .gp import GPLaw
 from .judge import Judge
 from .labels import LabelRecord, LabelStore, records_from_episode
 from .region import PlaceRegions
@@ -82,7 +82,8 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
             own: Sequence[Episode] = (), own_apn: APN | None = None, current: GPLaw | None = None,
             mentor_law: GPLaw | None = None, fusion: Fusion | None = None, own_required: bool = False
             ) -> tuple[GPLaw | None, dict[str, Any]]:
-    """Fit one law; returns the law (refit on all its data) and a summary with held-out NRMSE.
+    """Fit one law; returns the law (fitted on all its data) and a summary with held-out NRMSE: the error
+    on whole held-out episodes of the law's hyperparameters with their posterior solved on the others.
 
     ``own`` are the robot's own practice episodes whose labels mark the segments it graded
     successful (:mod:`multiform.adapt.experience`), read through ``own_apn`` (the net that ran them,
@@ -133,19 +134,18 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
                        own_episodes=int(np.sum(demos >= len(episodes))))
         if own_required and summary["n_own"] == 0:
             return None, summary
-    # the law on all its data and, to measure it, a probe on all but the held-out demonstrations: fitted
-    # together, so that their hyperparameter subsets share the workers (GPLaw n_jobs)
-    te = None
-    sets = []
+    # the law on all its data and, to measure it, a probe on all but the held-out demonstrations with the
+    # law's hyperparameters: a posterior, not a second hyperparameter search (which doubled a law's fit)
+    te = tr = None
     if len(demos) >= 2 and heldout > 0:
         tr_d, te_d = split_episodes(len(demos), heldout, seed)
-        tr = np.flatnonzero(np.isin(data.episode, demos[tr_d]))
+        tr = subset(np.flatnonzero(np.isin(data.episode, demos[tr_d])))
         te = np.flatnonzero(np.isin(data.episode, demos[te_d]))
-        sets.append(subset(tr))
-    sets.append(subset(np.arange(len(data.X))))
-    *probe, law_model = fit_together([make() for _ in sets], [(data.X[i], data.Y[i]) for i in sets])
+    rows = subset(np.arange(len(data.X)))
+    law_model = make().fit(data.X[rows], data.Y[rows])
     if te is not None:
-        summary["heldout_nrmse"] = nrmse(probe[0].predict(data.X[te]), data.Y[te])
+        probe = make().set_params(theta=law_model.theta_).fit(data.X[tr], data.Y[tr])
+        summary["heldout_nrmse"] = nrmse(probe.predict(data.X[te]), data.Y[te])
         summary["heldout_samples"] = int(len(te))
         if current is not None:
             summary["heldout_nrmse_current"] = nrmse(current.predict(data.X[te]), data.Y[te])
