@@ -10,9 +10,9 @@ median and range over seeds. No ablations, videos or report (``multiform demo`` 
 The figures also go to ``benchmarks/results/bench_job_seeds_<task>.json`` (``--results DIR``).
 
     .venv/bin/python benchmarks/bench_job_seeds.py --out runs/seeds --seeds 0 1 2 [--trials 200]
-        [--demos 5] [--practice '{"deliberate": true}']
+        [--demos 5] [--practice '{"deliberate": true}'] [--kinesthetic]
 
-``--demos`` and ``--practice`` (PracticeConfig settings over every scenario's own, as ``multiform demo
+``--demos``, ``--kinesthetic`` (the mentor guides the arm by hand) and ``--practice`` (PracticeConfig settings over every scenario's own, as ``multiform demo
 --practice``) make a variant of the job; its figures are recorded under a name of their own.
 
 About 6 minutes per seed on this 2-core machine with 200 trials. Each seed's run folder
@@ -51,13 +51,14 @@ from multiform.task import load_task  # noqa: E402
 
 
 def one_seed(task: str, out: Path, seed: int, trials: int, eval_seed: int, workers: int,
-             demos: int | None = None, practice: dict | None = None) -> dict:
+             demos: int | None = None, practice: dict | None = None, kinesthetic: bool | None = None) -> dict:
     done = out / "seed_result.json"
     if done.exists():
         res = read_json(done, "seed result")
         if "practice_trials" in res:          # a result written before practice was counted: finish it again
             return res
-    job = Job(task, out, JobConfig(seed=seed, workers=workers, demos=demos, practice=practice or {}),
+    job = Job(task, out, JobConfig(seed=seed, workers=workers, demos=demos, practice=practice or {},
+                                   kinesthetic=kinesthetic),
               log=lambda *a: None, progress=False)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -93,19 +94,21 @@ def main() -> None:
     ap.add_argument("--demos", type=int, default=None, help="demonstrations per job (default: the task's)")
     ap.add_argument("--practice", type=json.loads, default={}, metavar="JSON",
                     help="practice settings over every scenario's own, e.g. '{\"deliberate\": true}'")
+    ap.add_argument("--kinesthetic", action="store_true",
+                    help="the mentor guides the arm by hand (as `multiform demo --kinesthetic`)")
     ap.add_argument("--target", type=float, default=None,
                     help="the success rate every seed must reach (default: the task's TARGET_SUCCESS_RATE)")
     add_option(ap)
     args = ap.parse_args()
     task = load_task(args.task)
     target = task.TARGET_SUCCESS_RATE if args.target is None else args.target
-    variant = task.TASK + (f"_{args.demos}_demos" if args.demos else "") + "".join(
+    variant = task.TASK + (f"_{args.demos}_demos" if args.demos else "") + ("_kinesthetic" if args.kinesthetic else "") + "".join(
         f"_{k}_{str(v).lower()}" for k, v in sorted(args.practice.items()))
     rec = Record(__file__, "The main job's spread over job seeds", section="seeds", variant=variant)
     rows = []
     for seed in args.seeds:
         r = one_seed(args.task, Path(args.out) / f"seed_{seed}", seed, args.trials, args.eval_seed, args.workers,
-                     args.demos, args.practice)
+                     args.demos, args.practice, args.kinesthetic or None)
         rows.append(r)
         lo, hi = wilson(r["successes"], r["trials"])
         print(f"seed {seed}: {100 * r['successes'] / r['trials']:.1f} % ({r['successes']}/{r['trials']}; "
@@ -123,7 +126,8 @@ def main() -> None:
               f"{statistics.median(r['robot_seconds'] for r in rows):.0f} s, "
               f"most {max(r['robot_seconds'] for r in rows):.0f} s")
         record_seeds(rec, task, rows, args.eval_seed, target,
-                     task.TASK + (f" from {args.demos} demonstrations" if args.demos else ""))
+                     task.TASK + (f" from {args.demos} demonstrations" if args.demos else "")
+                     + (" taught kinesthetically" if args.kinesthetic else ""))
         rec.write(args.results)
 
 
