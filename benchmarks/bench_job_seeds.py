@@ -12,8 +12,9 @@ The figures also go to ``benchmarks/results/bench_job_seeds_<task>.json`` (``--r
     .venv/bin/python benchmarks/bench_job_seeds.py --out runs/seeds --seeds 0 1 2 [--trials 200]
         [--demos 5] [--practice '{"deliberate": true}'] [--kinesthetic]
 
-``--demos``, ``--kinesthetic`` (the mentor guides the arm by hand) and ``--practice`` (PracticeConfig settings over every scenario's own, as ``multiform demo
---practice``) make a variant of the job; its figures are recorded under a name of their own.
+``--demos``, ``--kinesthetic`` (the mentor guides the arm by hand) and ``--practice`` (PracticeConfig
+settings over every scenario's own, as ``multiform demo --practice``) make a variant of the job; its
+figures are recorded under a name of their own.
 
 About 6 minutes per seed on this 2-core machine with 200 trials. Each seed's run folder
 (``OUT/seed_N``) is kept; a folder that already holds a finished seed is reused.
@@ -102,8 +103,8 @@ def main() -> None:
     args = ap.parse_args()
     task = load_task(args.task)
     target = task.TARGET_SUCCESS_RATE if args.target is None else args.target
-    variant = task.TASK + (f"_{args.demos}_demos" if args.demos else "") + ("_kinesthetic" if args.kinesthetic else "") + "".join(
-        f"_{k}_{str(v).lower()}" for k, v in sorted(args.practice.items()))
+    variant = (task.TASK + (f"_{args.demos}_demos" if args.demos else "") + ("_kinesthetic" if args.kinesthetic else "")
+               + "".join(f"_{k}_{str(v).lower()}" for k, v in sorted(args.practice.items())))
     rec = Record(__file__, "The main job's spread over job seeds", section="seeds", variant=variant)
     rows = []
     for seed in args.seeds:
