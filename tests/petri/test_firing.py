@@ -212,3 +212,27 @@ def test_unless_names_a_transition_of_the_net():
     with pytest.raises(InvalidInput, match="unless"):
         add_transition(load_skill("pendulum"), "t7", {"in": ["P2"], "out": ["P1"],
                                                       "condition": {"model": "back", "unless": ["t99"]}}, "test")
+
+
+def test_a_learned_switch_held_within_a_region_fires_only_inside_it():
+    """``within`` holds a learned condition to a region of the state: outside it the switch does not
+    fire, however high its decision; a peak guard's passage is one through both."""
+    from multiform.petri.revision import set_condition
+    apn, rev = set_condition(load_skill("pendulum_strict"), "t1", {"model": "sw", "within": "x > -0.1 and x < 0.1"},
+                             "test")
+    assert apn.transition("t1").condition.to_data() == {"model": "sw", "within": "x > -0.1 and x < 0.1"}
+    assert "x" in apn.transition("t1").condition.variables
+    for at_peak, expect in ((False, 3), (True, 4)):
+        r = NetRunner(apn, ["theta", "omega", "x", "xdot"], learned={"sw": _Bump(at_peak)}, rng=0)
+        assert r.tick([3.0, 0.0, 0.0, 0], 0.0) == ["t0"]
+        fired = [r.tick([th, 0.0, x, 0], k * 1e-3)
+                 for k, (th, x) in enumerate([(0.1, 0.3), (0.0, 0.3), (0.1, 0.05), (0.15, 0.05), (0.2, 0.05)], 1)]
+        assert [k for k, f in enumerate(fired, 1) if f == ["t1"]] == [expect]     # not at the peak outside (k = 2)
+
+
+def test_within_must_be_an_expression_over_the_skills_variables():
+    from multiform.petri.revision import set_condition
+    for bad in ({"model": "sw", "within": 3}, {"model": "sw", "within": "nonsense_var > 1"},
+                {"model": "sw", "within": "x >"}):
+        with pytest.raises(InvalidInput, match="within"):
+            set_condition(load_skill("pendulum_strict"), "t1", bad, "test")

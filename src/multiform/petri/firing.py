@@ -102,6 +102,7 @@ class NetRunner:
         # the minimum over several input places; 'time' for a source transition) and its guard.
         self._multi_dwell: list[tuple[int, list[int]]] = []
         self._guards: list[Callable[[list[float]], bool]] = []
+        self._within: list[Callable[[list[float]], bool] | None] = []
         n_slots = len(names)
         for t in apn.transitions:
             ins = [apn.place_index(p) for p in t.inputs]
@@ -115,7 +116,10 @@ class NetRunner:
                 self._multi_dwell.append((dwell, [self.dwell_slots[i] for i in ins]))
             if t.condition.is_learned:
                 self._guards.append(self._learned_guard(learned[t.condition.model]))
+                self._within.append(None if t.condition.within is None else
+                                    t.condition.within.compile({**self.slots, "dwell": dwell}))
             else:
+                self._within.append(None)
                 self._guards.append(t.condition.guard.compile({**self.slots, "dwell": dwell}))
         # A condition that yields to other transitions holds only where none of theirs does (where
         # theirs holds, whether or not it fires there yet).
@@ -126,6 +130,9 @@ class NetRunner:
                 model = learned[t.condition.model]
                 self._peaks.append(_PeakGuard(self, model, self._reader(model)))
                 self._guards[j] = self._peaks[-1]
+        for j, within in enumerate(self._within):
+            if within is not None:
+                self._guards[j] = _within(self._guards[j], within)
         for j, t in enumerate(apn.transitions):
             if t.condition.unless:          # the skill loader checked that they are transitions of the net
                 others = [own[apn.transition_index(u)] for u in t.condition.unless]
@@ -343,6 +350,13 @@ class _PeakGuard:
             self._held = self._last > self.threshold and d <= self._last
         self._tick, self._last = t, d
         return self._held
+
+
+def _within(guard: Callable[[list[float]], bool], region: Callable[[list[float]], bool]
+            ) -> Callable[[list[float]], bool]:
+    """``guard`` held to ``region``: outside it the guard is not asked, so a peak guard's passage is one
+    through both."""
+    return lambda v: bool(region(v)) and guard(v)
 
 
 def _yielding(guard: Callable[[list[float]], bool], others: list[Callable[[list[float]], bool]]

@@ -52,11 +52,15 @@ class Condition:
     A learned condition may name transitions it yields to (``unless``): it holds only where none of
     their conditions holds. A way back from P2 to P1 learned from regions yields to the way in (P1
     to P2); otherwise at a state where both hold the token would flip between the places every tick.
+    It may also be held to a region of the state (``within``, a guard expression): it holds only
+    where that expression holds too (practice's firing-range exam keeps a learned switch to where
+    the mentor switched in a variable the switch does not read).
     """
 
     guard: Guard | None = None
     model: str | None = None
     unless: tuple[str, ...] = ()
+    within: Guard | None = None
 
     @classmethod
     def always(cls) -> Condition:
@@ -67,8 +71,8 @@ class Condition:
         return cls(guard=parse_guard(text, allowed))
 
     @classmethod
-    def learned(cls, name: str, unless: Sequence[str] = ()) -> Condition:
-        return cls(model=name, unless=tuple(unless))
+    def learned(cls, name: str, unless: Sequence[str] = (), within: Guard | None = None) -> Condition:
+        return cls(model=name, unless=tuple(unless), within=within)
 
     @property
     def is_learned(self) -> bool:
@@ -76,18 +80,26 @@ class Condition:
 
     @property
     def variables(self) -> frozenset[str]:
-        return self.guard.variables if self.guard is not None else frozenset()
+        """The variables its expressions read (a learned model's inputs are the model's)."""
+        out = self.guard.variables if self.guard is not None else frozenset()
+        return out | self.within.variables if self.within is not None else out
 
     def to_data(self) -> str | dict[str, Any]:
-        """The skill-file form: the expression text, or ``{"model": name}`` (with ``unless``)."""
+        """The skill-file form: the expression text, or ``{"model": name}`` (with ``unless`` and ``within``)."""
         if self.model is None:
             return self.guard.text
-        return {"model": self.model, "unless": list(self.unless)} if self.unless else {"model": self.model}
+        out: dict[str, Any] = {"model": self.model}
+        if self.unless:
+            out["unless"] = list(self.unless)
+        if self.within is not None:
+            out["within"] = self.within.text
+        return out
 
     def __str__(self) -> str:
         if self.model is None:
             return self.guard.text
-        return f"learned:{self.model}" + (f" unless {', '.join(self.unless)}" if self.unless else "")
+        return (f"learned:{self.model}" + (f" unless {', '.join(self.unless)}" if self.unless else "")
+                + (f" within {self.within.text}" if self.within is not None else ""))
 
 
 @dataclass(frozen=True)

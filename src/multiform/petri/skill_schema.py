@@ -432,14 +432,25 @@ def parse_transitions(raw: Mapping[str, Any], place_ids: set[str], transition_id
 def parse_condition(raw: Any, el: str, allowed: frozenset[str], bad,
                     transitions: set[str] | frozenset[str] = frozenset()) -> Condition:
     """An expression, or ``{model: <name>}`` with optional ``unless: <transition id(s)>`` among
-    ``transitions`` (the other transitions of the net)."""
+    ``transitions`` (the other transitions of the net) and ``within: <expression>``."""
     if isinstance(raw, bool):
         raw = "true" if raw else "false"
     if isinstance(raw, Mapping):
         model = raw.get("model")
-        if not set(raw) <= {"model", "unless"} or not isinstance(model, str) or not IDENT.match(model):
-            bad(el, "a learned condition is written {model: <name>} or {model: <name>, unless: [<transition>, ...]}")
+        if not set(raw) <= {"model", "unless", "within"} or not isinstance(model, str) or not IDENT.match(model):
+            bad(el, "a learned condition is written {model: <name>}, optionally with unless: [<transition>, ...] "
+                    "and within: <expression>")
             return Condition.always()
+        within = None
+        if "within" in raw:
+            if not isinstance(raw["within"], str):
+                bad(f"{el}.within", f"must be an expression, got {raw['within']!r}")
+                return Condition.always()
+            try:
+                within = Condition.expression(raw["within"], allowed).guard
+            except GuardError as exc:
+                bad(f"{el}.within", str(exc))
+                return Condition.always()
         unless = raw.get("unless", [])
         unless = [unless] if isinstance(unless, str) else unless
         if not isinstance(unless, list) or not all(isinstance(u, str) for u in unless):
@@ -450,7 +461,7 @@ def parse_condition(raw: Any, el: str, allowed: frozenset[str], bad,
             bad(f"{el}.unless", f"unknown transition(s) {', '.join(map(repr, unknown))} "
                                 f"(others: {', '.join(sorted(transitions)) or 'none'})")
             return Condition.always()
-        return Condition.learned(model, unless)
+        return Condition.learned(model, unless, within)
     if not isinstance(raw, str):
         bad(el, f"must be an expression or {{model: <name>}}, got {raw!r}")
         return Condition.always()

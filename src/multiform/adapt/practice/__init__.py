@@ -14,7 +14,9 @@ The parts, one module each:
 * :mod:`.watch` — every revision made while learning is watched, paired (``exam``) or not, and
   reverted if it made things worse;
 * :mod:`.floors` — the ways back's floor examined once at the end (``floor_exam``);
-* :mod:`.switches` — a learned switch's smoothest setting examined at the first shortfall (``switch_exam``).
+* :mod:`.switches` — a learned switch's smoothest setting examined at the first shortfall (``switch_exam``);
+* :mod:`.ranges` — a learned switch held to where the mentor switched, where its own firings
+  outside that range fail, examined at a shortfall (``range_exam``).
 
 With ``learn`` the loop also explores on every ``explore_every``-th trial (:mod:`..explore`), so its
 own data holds variations of its maneuvers and not only their repetition; the other trials measure

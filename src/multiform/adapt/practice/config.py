@@ -22,7 +22,8 @@ class PracticeConfig:
     refitting every ten trials where the plain trials fall short of ``target_rate``, each revision
     examined on the same trials replayed (``exam``), the mentor's time (``mentor_trials``) split
     between grading trials and taking over failed ones, the ways back's floor examined at the end,
-    and a learned switch's smoothest setting examined at the first shortfall (``switch_exam``).
+    a learned switch's smoothest setting examined at the first shortfall (``switch_exam``), and a learned
+    switch held to where the mentor switched where its own firings outside that range fail (``range_exam``).
     :data:`REPAIR_ONLY` is practice that only repairs (the paper's two scenarios).
 
     Constant failure: ``failures_in_a_row`` failed trials in a row, or (if ``window`` > 0) at least
@@ -57,6 +58,7 @@ class PracticeConfig:
     check_demonstrations: bool = True
     deliberate: bool = False            # exploring trials pushed or not as the robot's weaker condition asks
     switch_exam: bool = True            # at the first shortfall, the learned switches' smoothest setting examined
+    range_exam: bool = True             # at a shortfall, a learned switch held to the mentor's range where it fails outside
     max_robot_seconds: float = 0.0      # practice stops once its trials add up to this much robot time (0: no limit)
 
     def budgets(self, takes_over: bool) -> tuple[int, int]:
@@ -84,7 +86,7 @@ class PracticeConfig:
         v = self.max_robot_seconds
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0.0 <= v <= 1e7):
             raise InvalidInput(f"must be seconds in 0..10000000, got {v!r}", element="max_robot_seconds")
-        for name in ("learn", "exam", "check_demonstrations", "deliberate", "switch_exam"):
+        for name in ("learn", "exam", "check_demonstrations", "deliberate", "switch_exam", "range_exam"):
             if not isinstance(getattr(self, name), bool):
                 raise InvalidInput(f"must be true or false, got {getattr(self, name)!r}", element=name)
 

@@ -37,9 +37,11 @@ class Context:
     def set_learned_condition(self, state: PracticeState, transition: str, model: str, reason: str,
                               evidence: dict[str, Any]) -> int:
         """A recorded ``set_condition`` revision: ``transition`` fires on the learned condition
-        ``model`` from now on, yielding to the same transitions as before; returns its version."""
+        ``model`` from now on, yielding to the same transitions and held to the same region as before;
+        returns its version."""
         apn = self.model.apn
-        ref = Condition.learned(model, apn.transition(transition).condition.unless).to_data()
+        old = apn.transition(transition).condition
+        ref = Condition.learned(model, old.unless, old.within).to_data()
         _, rev = set_condition(apn, transition, ref, reason, evidence)
         return self.record(state, rev)
 

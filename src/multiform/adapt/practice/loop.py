@@ -28,6 +28,7 @@ from .config import EXPLORE_TAU, PracticeConfig
 from .context import Context
 from .floors import FloorExam
 from .learning import Learning, MentorGrader, TakeoverFn
+from .ranges import RangeExam, switch_states
 from .repairs import Repairs
 from .state import PracticeState, RevisionRecord, TrialRecord, state_from_json, state_to_json
 from .switches import SwitchExam
@@ -44,7 +45,7 @@ class Practice:
     per trial index; see :meth:`multiform.runtime.executor.Executor.run`) and, for learning from
     practice, the ``mentor``'s grader of a trial and its ``takeover`` of a failed one
     (:class:`~.learning.Learning`). Its parts: :attr:`repairs`, :attr:`watch`, :attr:`learning`,
-    :attr:`floors`, :attr:`switches`."""
+    :attr:`floors`, :attr:`switches`, :attr:`ranges`."""
 
     def __init__(self, model: SkillModel, folder: str | Path, config: PracticeConfig | None = None,
                  options: Options | None = None, perturb: Perturb | None = None, name: str = "practice",
@@ -65,6 +66,7 @@ class Practice:
         self.learning = Learning(self.ctx, self.watch, mentor, takeover)
         self.floors = FloorExam(self.ctx, self.watch)
         self.switches = SwitchExam(self.ctx, self.watch)
+        self.ranges = RangeExam(self.ctx, self.watch)
 
     # -- state -------------------------------------------------------------------------------------
     @property
@@ -150,6 +152,8 @@ class Practice:
                 view.close()
             record = self._record(k, draw, version, trace, grade, success, explores, t0)
             record.pushed = pushed
+            record.switch_states = switch_states(executor.apn, trace,
+                                                 {t.id for t in executor.apn.transitions if t.condition.is_learned})
             if cfg.learn and grade is not None:
                 self.learning.learn_from(state, record, trace, grade, executor.apn)
                 if record.mentor is not None and record.mentor.revised is not None:
@@ -237,7 +241,8 @@ class Practice:
         elif self.repairs.constant_failure(state) and not (state.watch is not None and state.watch.must_win):
             self.repairs.repair(state)
         if not state.done and self.learning.refit_due(state):
-            if not (self.learning.falls_short(state) and self.switches.examine(state)):
+            if not (self.learning.falls_short(state)
+                    and (self.switches.examine(state) or self.ranges.examine(state))):
                 self.learning.refit(state)
         if not state.done and state.watch is None and cfg.max_trials - state.trial <= cfg.watch_trials():
             self.floors.examine(state)

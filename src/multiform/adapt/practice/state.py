@@ -69,6 +69,8 @@ class TrialRecord:
     mentor: MentorGrade | None = None
     takeover: Takeover | None = None
     own_segments: int = 0
+    switch_states: dict[str, list[dict[str, float]]] = field(default_factory=dict)   # per transition with a
+    # learned condition, the state at each of its firings (the firing-range exam's evidence)
 
     @property
     def drawn(self) -> int:
@@ -137,6 +139,7 @@ class PracticeState:
     checked: bool = False                  # the definition was held against the demonstrations
     floor_examined: bool = False           # the ways back's deeper floor was considered (``floor_exam``)
     switch_examined: bool = False          # the learned switches' smoothest setting was examined (``switch_exam``)
+    ranges_examined: list[str] = field(default_factory=list)   # "<transition>:<variable>" held to the mentor's range
     done: bool = False
     stop_reason: str = ""
     format_version: int = STATE_VERSION
@@ -208,7 +211,8 @@ def _trial_json(t: TrialRecord) -> dict[str, Any]:
     for key in ("draw", "mentor", "takeover"):
         if d[key] is None:
             del d[key]
-    for key, default in (("evidence", True), ("explored", False), ("pushed", False), ("own_segments", 0)):
+    for key, default in (("evidence", True), ("explored", False), ("pushed", False), ("own_segments", 0),
+                         ("switch_states", {})):
         if d[key] == default:
             del d[key]
     return d
