@@ -1,5 +1,5 @@
 """A learned switch held to where the mentor switched, where its own firings outside that range fail
-(``range_exam``): examined on replayed trials at a shortfall, reverted if it loses."""
+(``range_exam``): examined on replayed trials at a shortfall, kept only if it wins."""
 
 from __future__ import annotations
 
@@ -66,11 +66,12 @@ def test_firings_outside_the_mentors_range_that_fail_hold_the_switch_to_it_and_a
     assert cond.model == rev.before["condition"]["model"] and "xdot" in cond.within.variables
     assert rev.evidence["low"] == pytest.approx(mu - SPREAD * sd, rel=1e-4)
     assert rev.evidence["outside"] == [0, 6] and rev.evidence["inside"] == [14, 0]
-    assert state.watch is not None and not state.watch.must_win
-    # replayed: it loses two of the plain trials it replays more than it wins -> back, and the refit is due
+    assert state.watch is not None and state.watch.must_win and state.watch.by_margin
+    # replayed: it wins one of the plain trials it replays and loses none, not the two it must -> back, and the
+    # refit it stood in for is made at once
     before = state.watch.before
-    lost = [i for i, b in enumerate(before) if b][:2]
-    outcomes = [b and i not in lost for i, b in enumerate(before)]
+    won = before.index(False)
+    outcomes = [b or i == won for i, b in enumerate(before)]
     for ok in outcomes:
         draw = practice.watch.exam_draw(state)
         state.trials.append(TrialRecord(trial=state.trial, draw=draw, success=ok, net_version=model.version,
