@@ -107,3 +107,19 @@ def test_firing_outcomes_count_only_a_successful_trials_last_firing_as_success()
               TrialRecord(trial=2, success=True)]
     states, ok = firing_outcomes(trials, "t2")
     assert [s["a"] for s in states] == [1.0, 2.0, 3.0] and ok.tolist() == [False, True, False]
+
+
+def test_a_switch_held_to_the_mentors_range_that_wins_its_exam_by_the_margin_is_kept(model, tmp_path):
+    practice, state = _falling_short(model, tmp_path, "xdot")
+    practice.after_trial(state)
+    version = model.version
+    before = state.watch.before
+    won = [i for i, b in enumerate(before) if not b][:2]
+    for ok in [b or i in won for i, b in enumerate(before)]:
+        draw = practice.watch.exam_draw(state)
+        state.trials.append(TrialRecord(trial=state.trial, draw=draw, success=ok, net_version=model.version,
+                                        fired=["t0", "t1"]))
+        state.trial += 1
+        practice.after_trial(state)
+    assert state.watch is None and not any(r.operator == "revert" for r in model.history.revisions())
+    assert model.history.version(version).transition("t1").condition.within is not None
