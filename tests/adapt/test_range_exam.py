@@ -3,33 +3,24 @@
 
 from __future__ import annotations
 
-import shutil
-
 import numpy as np
 import pytest
 
-from multiform.adapt.learners import ModelLearners
 from multiform.adapt.practice import Practice, PracticeConfig, PracticeState, TrialRecord
 from multiform.adapt.practice import ranges
 from multiform.adapt.practice.ranges import SPREAD, firing_outcomes, range_evidence
 from multiform.learn.views import switch_data
 from multiform.model import SkillModel
-from multiform.petri.revision import set_condition
 
 FAILED = (2, 5, 8, 12, 15, 18)
 
 
 @pytest.fixture()
-def model(hostile_lab, tmp_path, monkeypatch) -> SkillModel:
-    """The four-demonstration pendulum model, its t1 relearned from the mentor's switches (four of
-    them: the range is taken from three and up here)."""
+def model(relearned_model, monkeypatch) -> SkillModel:
+    """The four-demonstration pendulum model, t1 relearned from its mentor's four switches (the
+    range is taken from three and up here)."""
     monkeypatch.setattr(ranges, "MIN_SWITCHES", 3)
-    shutil.copytree(hostile_lab / "model", tmp_path / "model")
-    model = SkillModel(tmp_path / "model")
-    name, evidence = ModelLearners(model, seed=0).switch_condition(model.apn, "t1")
-    _, rev = set_condition(model.apn, "t1", {"model": name}, "relearned", evidence)
-    model.history.record(rev)
-    return model
+    return relearned_model
 
 
 def _mentor(model: SkillModel) -> dict[str, tuple[float, float]]:
