@@ -447,7 +447,7 @@ def parse_condition(raw: Any, el: str, allowed: frozenset[str], bad,
                 bad(f"{el}.within", f"must be an expression, got {raw['within']!r}")
                 return Condition.always()
             try:
-                within = Condition.expression(raw["within"], allowed).guard
+                within = parse_guard(raw["within"], allowed)
             except GuardError as exc:
                 bad(f"{el}.within", str(exc))
                 return Condition.always()

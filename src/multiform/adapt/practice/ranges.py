@@ -27,6 +27,7 @@ import numpy as np
 from scipy.stats import fisher_exact
 
 from ...learn.views import switch_data
+from ...petri.guard import parse_guard
 from ...petri.net import APN, Condition
 from ...petri.revision import set_condition
 from ...runtime.trace import Trace
@@ -44,11 +45,11 @@ MIN_SWITCHES = 5      # the mentor's switches needed to have a range
 def switch_states(apn: APN, trace: Trace, learned: set[str]) -> dict[str, list[dict[str, float]]]:
     """Per transition in ``learned`` that fired in ``trace``, the state (the net's variables and derived
     values, finite ones) at each of its firings."""
-    names = [n for n in (*apn.variables, *apn.derived) if n in trace.value_names]
+    cols = {n: trace.value_names.index(n) for n in (*apn.variables, *apn.derived) if n in trace.value_names}
     out: dict[str, list[dict[str, float]]] = {}
     for f in trace.firings:
         if f.transition in learned:
-            row = {n: float(trace.values[f.tick, trace.value_names.index(n)]) for n in names}
+            row = {n: float(trace.values[f.tick, j]) for n, j in cols.items()}
             out.setdefault(f.transition, []).append({n: round(v, 6) for n, v in row.items() if math.isfinite(v)})
     return out
 
@@ -132,7 +133,7 @@ class RangeExam:
         apn = ctx.model.apn
         old = apn.transition(tid).condition
         region = f"{n} > {ev['low']:.4g} and {n} < {ev['high']:.4g}"
-        within = Condition.expression(region if old.within is None else f"({old.within.text}) and {region}").guard
+        within = parse_guard(region if old.within is None else f"({old.within.text}) and {region}")
         (si, fi), (so, fo) = ev["inside"], ev["outside"]
         reason = (f"the skill falls short of its target: {tid} fired with {n} outside the mentor's range "
                   f"({ev['low']:.3g} to {ev['high']:.3g}, the mean ± {SPREAD:g} sd of its {ev['mentor_switches']} "
