@@ -40,7 +40,7 @@ ENTRY_POINT_GROUP = "multiform.tasks"
 
 @dataclass(frozen=True)
 class Scenario:
-    """One practice run of a task: which trials (``options``: reset options per draw, ``perturb``:
+    """One practice run of a task: which trials (``options``: reset options per trial seed, ``perturb``:
     the experimenter's push per draw, or None), whether it learns from practice (``learn``; else it
     only repairs the net) and with the mentor's help (``mentor``: a factory of its grader of a
     trial; ``takeover``: a factory of its takeover of a failed trial, see

@@ -65,3 +65,21 @@ def test_a_loop_stopped_midway_resumes_to_where_an_uninterrupted_one_ends(traine
         ends.append(([replace(t, wall=0.0, time="") for t in state.trials],
                      [(json.loads(r)["operator"], json.loads(r)["target"], json.loads(r)["version"]) for r in history]))
     assert ends[0] == ends[1] == ends[2]
+
+
+def test_each_trial_starts_as_evaluation_draws_a_trial_of_its_seed(trained, tmp_path):
+    """A practice trial's reset options come from its own seed (as an evaluation trial's do), so two
+    job seeds practise from different starts, not from one sequence indexed by the trial number."""
+    task, model_dir = trained
+    asked: dict[int, list[int]] = {}
+    for job_seed in (1, 2):
+        model = tmp_path / f"model_{job_seed}"
+        shutil.copytree(model_dir, model)
+        sc = task.scenarios()[0]
+        seeds = asked.setdefault(job_seed, [])
+        practice = Practice(multiform.open_model(model), tmp_path / f"p_{job_seed}",
+                            sc.practice_config(max_trials=8, seed=job_seed),
+                            options=lambda s, seeds=seeds: seeds.append(s) or sc.options(s), name=sc.name)
+        state = practice.run(stop_after=3)
+        assert seeds == [t.seed for t in state.trials]
+    assert set(asked[1]).isdisjoint(asked[2])

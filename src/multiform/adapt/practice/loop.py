@@ -41,11 +41,12 @@ Observe = Callable[[int, Executor], Any]
 
 class Practice:
     """Runs the loop for one model in ``folder`` (state, failed traces), with trial ``options``
-    (reset options per trial index), an optional ``perturb`` factory (the experimenter's pushes,
-    per trial index; see :meth:`multiform.runtime.executor.Executor.run`) and, for learning from
-    practice, the ``mentor``'s grader of a trial and its ``takeover`` of a failed one
-    (:class:`~.learning.Learning`). Its parts: :attr:`repairs`, :attr:`watch`, :attr:`learning`,
-    :attr:`floors`, :attr:`switches`, :attr:`ranges`."""
+    (reset options per trial seed, as evaluation draws them from a task's ``trial_options``), an
+    optional ``perturb`` factory (the experimenter's pushes, per trial index; see
+    :meth:`multiform.runtime.executor.Executor.run`) and, for learning from practice, the
+    ``mentor``'s grader of a trial and its ``takeover`` of a failed one (:class:`~.learning.Learning`).
+    Its parts: :attr:`repairs`, :attr:`watch`, :attr:`learning`, :attr:`floors`, :attr:`switches`,
+    :attr:`ranges`."""
 
     def __init__(self, model: SkillModel, folder: str | Path, config: PracticeConfig | None = None,
                  options: Options | None = None, perturb: Perturb | None = None, name: str = "practice",
@@ -189,7 +190,8 @@ class Practice:
             runner = explorer
         view = self.observe(k, executor) if self.observe else None
         perturb = self.perturbation(state, draw, explores)
-        trace = runner.run(seed=cfg.trial_seed(draw), options=self.options(draw), perturb=perturb, observer=view)
+        seed = cfg.trial_seed(draw)
+        trace = runner.run(seed=seed, options=self.options(seed), perturb=perturb, observer=view)
         return trace, draw, explores, perturb is not None, view
 
     def perturbation(self, state: PracticeState, draw: int, explores: bool) -> Any:
