@@ -105,6 +105,11 @@ def test_a_refit_reports_mentor_and_own_samples_apart_with_error_before_and_afte
     none, info = fit_law(apn, mentor, "swing_up", seed=0, own=store.law_episodes("swing_up"), mentor_law=first,
                          settings=LawSettings(own_novelty=1e9), own_required=True)
     assert none is None and info["n_own"] == 0 and "heldout_nrmse" not in info
+    # with the earlier law's hyperparameters only the posterior is solved: the same kernel, the new data in it
+    kept, info = fit_law(apn, mentor, "swing_up", seed=0, own=store.law_episodes("swing_up"), theta=first.theta_)
+    assert np.allclose(kept.theta_, first.theta_) and info["n_own"] == 200
+    X = law_data(apn, store.law_episodes("swing_up"), "swing_up", lag=0.0).X
+    assert not np.allclose(kept.predict(X), first.predict(X))
 
 
 def test_a_skill_at_its_target_is_not_refitted(tmp_path):

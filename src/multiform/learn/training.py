@@ -80,8 +80,8 @@ class LawSettings:
 def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool = True,
             heldout: float = 0.2, seed: int = 0, settings: LawSettings | None = None,
             own: Sequence[Episode] = (), own_apn: APN | None = None, current: GPLaw | None = None,
-            mentor_law: GPLaw | None = None, fusion: Fusion | None = None, own_required: bool = False
-            ) -> tuple[GPLaw | None, dict[str, Any]]:
+            mentor_law: GPLaw | None = None, fusion: Fusion | None = None, own_required: bool = False,
+            theta: np.ndarray | None = None) -> tuple[GPLaw | None, dict[str, Any]]:
     """Fit one law; returns the law (fitted on all its data) and a summary with held-out NRMSE: the error
     on whole held-out episodes of the law's hyperparameters with their posterior solved on the others.
 
@@ -96,7 +96,8 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
     mentors, :mod:`.fusion`), each mentor's samples of a transition are kept with its weight there.
     With ``own_required``, own episodes of which no sample joins give no law (None, and the summary
     without the fits): the data is what the current law was fitted on, so a refit would only redraw
-    its fitting noise, at the cost of a fit.
+    its fitting noise, at the cost of a fit. With ``theta`` (a law's ``theta_``), the hyperparameters
+    are that law's and only the posterior is solved on the data.
     """
     s = settings or LawSettings()
     masks = fusion.sample_masks(episodes, seed) if fusion is not None else None
@@ -112,7 +113,7 @@ def fit_law(apn: APN, episodes: Sequence[Episode], law: str, success_only: bool 
         return GPLaw(n_hyper=s.n_hyper, n_restarts=s.n_restarts, sparse_threshold=s.sparse_threshold,
                      n_inducing=s.n_inducing, subset_noise=s.subset_noise,
                      hyper_subsets=s.hyper_subsets, mean=s.mean or spec.mean, random_state=seed, input_names=tuple(spec.inputs),
-                     output_names=tuple(spec.outputs))
+                     output_names=tuple(spec.outputs), theta=theta)
 
     def subset(idx: np.ndarray) -> np.ndarray:
         return idx if len(idx) <= s.max_train else np.sort(rng.choice(idx, s.max_train, replace=False))
