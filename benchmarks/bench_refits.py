@@ -40,9 +40,9 @@ from _results import Record, add_option  # noqa: E402
 
 from multiform.adapt.experience import Experience  # noqa: E402
 from multiform.adapt.practice import PracticeConfig  # noqa: E402
+from multiform.adapt.practice.learning import fit_refit  # noqa: E402
 from multiform.evaluation import Variant, evaluate  # noqa: E402
 from multiform.learn.gp import GPLaw  # noqa: E402
-from multiform.learn.training import LawSettings, fit_law  # noqa: E402
 from multiform.model import SkillModel  # noqa: E402
 from multiform.petri.revision import refit_law  # noqa: E402
 from multiform.task import task_for_env  # noqa: E402
@@ -85,14 +85,9 @@ def earlier_kernel(model: SkillModel, law: str, base: int, practice_seed: int) -
     own = experience.law_episodes(law, [s for s in experience.segments() if s.source in sources and law in s.laws])
     takeovers = experience.takeovers()
     taken = [takeovers[k] for k in rev.evidence.get("takeovers", ()) if k in takeovers]
-    mentor_net = model.history.version(0)
     earlier = model.laws(model.history.version(base))[law]
-    fitted, info = fit_law(mentor_net, model.episodes + taken, law, seed=practice_seed, own=own,
-                           own_apn=model.history.version(rev.version - 1),
-                           mentor_law=model.laws(mentor_net).get(law),
-                           settings=LawSettings(own_novelty=PracticeConfig().novelty), fusion=model.fusion(),
-                           theta=earlier.theta_)
-    return fitted, info
+    return fit_refit(model, law, own, taken, model.history.version(rev.version - 1), practice_seed,
+                     PracticeConfig().novelty, theta=earlier.theta_)
 
 
 def main() -> None:
@@ -116,10 +111,10 @@ def main() -> None:
                  variant=args.label.replace(" ", "_") if args.label else None)
     print(f"{label}: refitted since version {base}: " + ", ".join(f"{k} ({a} -> {b})" for k, (a, b) in laws.items()))
     specs = task.evaluation_specs(args.trials, args.seed, args.push_fraction)
-    plans = {"final": {}, **{f"{law} put back": {law: a} for law, (a, _) in laws.items()}}
+    plans: dict[str, dict[str, str | GPLaw]] = {"final": {}, **{f"{law} put back": {law: a} for law, (a, _) in laws.items()}}
     if len(laws) > 1:
         plans["all put back"] = {law: a for law, (a, _) in laws.items()}
-    kernels: dict[str, dict[str, str | GPLaw]] = {}
+    what = {name: f", {name}" if fits else "" for name, fits in plans.items()}     # each variant, for the record
     if args.kernels:
         learning = [i for i, sc in enumerate(task.scenarios()) if sc.learn]
         practice_seed = args.seed + (learning[0] if learning else 0)    # as the job seeds its scenarios
@@ -128,13 +123,16 @@ def main() -> None:
             fitted[law], info = earlier_kernel(source, law, base, practice_seed)
             print(f"  {law} with its earlier kernel: {info.get('n_mentor')} mentor and {info.get('n_own')} own samples",
                   flush=True)
-        kernels = {f"{law} earlier kernel": {law: f} for law, f in fitted.items()}
+        for law, f in fitted.items():
+            plans[f"{law} earlier kernel"] = {law: f}
+            what[f"{law} earlier kernel"] = f", {law} on its refit's data with its earlier fit's kernel"
         if len(fitted) > 1:
-            kernels["all earlier kernels"] = fitted
+            plans["all earlier kernels"] = fitted
+            what["all earlier kernels"] = ", every refitted law on its refit's data with its earlier fit's kernel"
     results = {}
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="bench_refits_") as tmp:
-        for i, (name, fits) in enumerate({**plans, **kernels}.items()):
+        for i, (name, fits) in enumerate(plans.items()):
             path = args.model if not fits else put_back(args.model, Path(tmp) / f"v{i}", fits)
             r = evaluate(task.TASK, Variant(name, str(path)), specs, args.workers)
             pushed = r.get("pushed")
@@ -144,10 +142,7 @@ def main() -> None:
     print(f"{time.perf_counter() - t0:.0f} s")
 
     for name, r in results.items():
-        what = {"final": "", "all earlier kernels": ", every refitted law on its refit's data with its earlier fit's kernel"
-                }.get(name, f", {name}" if name not in kernels else
-                      f", {name.removesuffix(' earlier kernel')} on its refit's data with its earlier fit's kernel")
-        rec.rate(name.replace(" ", "_"), f"{label}: the final skill{what}"
+        rec.rate(name.replace(" ", "_"), f"{label}: the final skill{what[name]}"
                  f" ({args.trials} evaluation trials of job seed {args.seed})", r["successes"], r["trials"])
     rec.write(args.results)
 

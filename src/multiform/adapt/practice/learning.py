@@ -19,15 +19,18 @@ mentor's grades of some trials and its takeovers of failed ones, and refits of t
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from typing import Any
 
 from scipy.stats import binomtest
 
 from ...demos.episode import Episode, SegmentLabel
+from ...learn.gp import GPLaw
 from ...learn.judge import TrialGrade
 from ...learn.labels import is_mentor, records_from_episode
 from ...learn.training import LawSettings, fit_law
 from ...learn.views import is_demonstration, place_episode
+from ...model import SkillModel
 from ...petri.net import APN
 from ...petri.revision import refit_law
 from ...runtime.trace import Trace
@@ -188,12 +191,8 @@ class Learning:
             if len(new) < cfg.refit_min_segments and not new_takeovers:
                 continue
             own = ctx.experience.law_episodes(law, mine)
-            mentor_net = model.history.version(0)
-            refitted, info = fit_law(mentor_net, model.episodes + list(takeovers.values()), law,
-                                     seed=cfg.seed, own=own, own_apn=apn, current=model.laws(apn).get(law),
-                                     mentor_law=model.laws(mentor_net).get(law),
-                                     settings=LawSettings(own_novelty=cfg.novelty), fusion=model.fusion(),
-                                     own_required=not new_takeovers)
+            refitted, info = fit_refit(model, law, own, list(takeovers.values()), apn, cfg.seed, cfg.novelty,
+                                       current=model.laws(apn).get(law), own_required=not new_takeovers)
             if refitted is None:        # none of its own samples is new to the law: nothing to refit on
                 continue
             fit = ctx.learners.fresh_law(law)
@@ -221,6 +220,17 @@ class Learning:
             if r.operator == "refit_law" and r.target == law:
                 return set(r.evidence.get(key, ()))
         return set()
+
+
+def fit_refit(model: SkillModel, law: str, own: Sequence[Episode], takeovers: Sequence[Episode], own_apn: APN,
+              seed: int, novelty: float, **kw: Any) -> tuple[GPLaw | None, dict[str, Any]]:
+    """``law`` fitted as practice refits it: from the mentor's demonstrations, its ``takeovers`` and
+    the robot's ``own`` episodes (run by ``own_apn``), whose samples join where the mentor-only law is
+    unsure by ``novelty``; ``kw`` go to :func:`~multiform.learn.training.fit_law`."""
+    mentor_net = model.history.version(0)
+    return fit_law(mentor_net, model.episodes + list(takeovers), law, seed=seed, own=own, own_apn=own_apn,
+                   mentor_law=model.laws(mentor_net).get(law), settings=LawSettings(own_novelty=novelty),
+                   fusion=model.fusion(), **kw)
 
 
 def _round(x: float | None) -> float | None:
