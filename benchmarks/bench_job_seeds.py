@@ -10,11 +10,13 @@ median and range over seeds. No ablations, videos or report (``multiform demo`` 
 The figures also go to ``benchmarks/results/bench_job_seeds_<task>.json`` (``--results DIR``).
 
     .venv/bin/python benchmarks/bench_job_seeds.py --out runs/seeds --seeds 0 1 2 [--trials 200]
-        [--demos 5] [--practice '{"deliberate": true}'] [--kinesthetic]
+        [--demos 5] [--practice '{"deliberate": true}'] [--kinesthetic] [--practice-seed-offset 1000]
 
 ``--demos``, ``--kinesthetic`` (the mentor guides the arm by hand) and ``--practice`` (PracticeConfig
 settings over every scenario's own, as ``multiform demo --practice``) make a variant of the job; its
-figures are recorded under a name of their own.
+figures are recorded under a name of their own. ``--practice-seed-offset K`` changes nothing but the
+trials practice draws (``multiform demo --practice-seed``): the same demonstrations, training and
+evaluation trials. Run beside a change to practice, it says how far a result moves by luck alone.
 
 About 6 minutes per seed on this 2-core machine with 200 trials. Each seed's run folder
 (``OUT/seed_N``) is kept; a folder that already holds a finished seed is reused.
@@ -52,14 +54,15 @@ from multiform.task import load_task  # noqa: E402
 
 
 def one_seed(task: str, out: Path, seed: int, trials: int, eval_seed: int, workers: int,
-             demos: int | None = None, practice: dict | None = None, kinesthetic: bool | None = None) -> dict:
+             demos: int | None = None, practice: dict | None = None, kinesthetic: bool | None = None,
+             practice_seed: int | None = None) -> dict:
     done = out / "seed_result.json"
     if done.exists():
         res = read_json(done, "seed result")
         if "practice_trials" in res:          # a result written before practice was counted: finish it again
             return res
     job = Job(task, out, JobConfig(seed=seed, workers=workers, demos=demos, practice=practice or {},
-                                   kinesthetic=kinesthetic),
+                                   kinesthetic=kinesthetic, practice_seed=practice_seed),
               log=lambda *a: None, progress=False)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -97,6 +100,9 @@ def main() -> None:
                     help="practice settings over every scenario's own, e.g. '{\"deliberate\": true}'")
     ap.add_argument("--kinesthetic", action="store_true",
                     help="the mentor guides the arm by hand (as `multiform demo --kinesthetic`)")
+    ap.add_argument("--practice-seed-offset", type=int, default=0, metavar="K",
+                    help="job seed S practises on the trial draws of seed S + K, all else the same: the spread "
+                         "over K is what the result owes to the trials practice happened to draw")
     ap.add_argument("--target", type=float, default=None,
                     help="the success rate every seed must reach (default: the task's TARGET_SUCCESS_RATE)")
     add_option(ap)
@@ -104,12 +110,14 @@ def main() -> None:
     task = load_task(args.task)
     target = task.TARGET_SUCCESS_RATE if args.target is None else args.target
     variant = (task.TASK + (f"_{args.demos}_demos" if args.demos else "") + ("_kinesthetic" if args.kinesthetic else "")
-               + "".join(f"_{k}_{str(v).lower()}" for k, v in sorted(args.practice.items())))
+               + "".join(f"_{k}_{str(v).lower()}" for k, v in sorted(args.practice.items()))
+               + (f"_practice_seed_plus_{args.practice_seed_offset}" if args.practice_seed_offset else ""))
     rec = Record(__file__, "The main job's spread over job seeds", section="seeds", variant=variant)
     rows = []
     for seed in args.seeds:
         r = one_seed(args.task, Path(args.out) / f"seed_{seed}", seed, args.trials, args.eval_seed, args.workers,
-                     args.demos, args.practice, args.kinesthetic or None)
+                     args.demos, args.practice, args.kinesthetic or None,
+                     seed + args.practice_seed_offset if args.practice_seed_offset else None)
         rows.append(r)
         lo, hi = wilson(r["successes"], r["trials"])
         print(f"seed {seed}: {100 * r['successes'] / r['trials']:.1f} % ({r['successes']}/{r['trials']}; "
@@ -128,7 +136,9 @@ def main() -> None:
               f"most {max(r['robot_seconds'] for r in rows):.0f} s")
         record_seeds(rec, task, rows, args.eval_seed, target,
                      task.TASK + (f" from {args.demos} demonstrations" if args.demos else "")
-                     + (" taught kinesthetically" if args.kinesthetic else ""))
+                     + (" taught kinesthetically" if args.kinesthetic else "")
+                     + (f", practice drawn from job seed + {args.practice_seed_offset}"
+                        if args.practice_seed_offset else ""))
         rec.write(args.results)
 
 

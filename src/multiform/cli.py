@@ -464,7 +464,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
                     videos=not args.no_video, inverse_model=not args.reference_controller,
                     learn=args.learn_from_practice, practice_budget=args.practice_budget, ray=args.ray,
                     mentors=mentors, fusion=args.fusion, practice=args.practice,
-                    kinesthetic=args.kinesthetic)
+                    kinesthetic=args.kinesthetic, practice_seed=args.practice_seed)
     m = Job(args.task, args.out, cfg, view=args.view).run()
     sr = m["success_rate"]
     print(f"success rate {100 * sr['rate']:.1f} % ({sr['successes']}/{sr['trials']}; 95 % CI "

@@ -443,6 +443,9 @@ def _add_run_commands(sub: argparse._SubParsersAction, h: Handlers) -> None:
     _add_workers(p, JOB_DEFAULTS["workers"])
     p.add_argument("--seed", type=_count(0, 40_000), default=JOB_DEFAULTS["seed"],
                    help="the job's seed: its demonstrations, practice and evaluation trials")
+    p.add_argument("--practice-seed", type=_count(0, 40_000), default=None,
+                   help="the seed of practice's trial draws alone: with all else the same, another value shows how "
+                        "much the result owes to the trials practice happened to draw (default: --seed)")
     p.add_argument("--no-video", action="store_true", help="write no videos")
     p.add_argument("--learn-from-practice", action=argparse.BooleanOptionalAction, default=JOB_DEFAULTS["learn"],
                    help="run the task's scenarios that learn from practice: refit the laws from the robot's own "

@@ -71,6 +71,9 @@ class JobConfig:
                                      # e.g. {"deliberate": True, "max_robot_seconds": 900}
     kinesthetic: bool | None = None  # the mentor guides the arm by hand (True) or sends commands (False);
                                      # None: the task's KINESTHETIC
+    practice_seed: int | None = None  # the seed of practice's trial draws (scenario i: this + i); None: ``seed``.
+                                     # Another value with all else the same shows how much a result owes to
+                                     # the trials practice happened to draw
 
 
 class Job:
@@ -187,6 +190,11 @@ class Job:
         return SkillModel(final)
 
     # -- 3. practice ------------------------------------------------------------------------------
+    @property
+    def practice_seed(self) -> int:
+        """The seed of the first scenario's practice draws (the next scenarios': one more each)."""
+        return self.cfg.seed if self.cfg.practice_seed is None else self.cfg.practice_seed
+
     def practise(self, model: SkillModel) -> dict[str, Any]:
         results = {}
         used = 0
@@ -200,7 +208,7 @@ class Job:
             graders = tuple(dict.fromkeys(name for name, _ in self.cfg.mentors)) if len(self.cfg.mentors) > 1 else ()
             if self.cfg.practice:
                 sc = sc.with_config(self.cfg.practice)
-            practice = sc.practice(model, folder, limit, self.cfg.seed + index, mentors=graders)
+            practice = sc.practice(model, folder, limit, self.practice_seed + index, mentors=graders)
             cfg = practice.config
             with self._bar(cfg.max_trials, f"practice {sc.name}") as bar:
                 bar.update(practice.load_state().trial)

@@ -1,0 +1,53 @@
+"""The job's practice draws: from the job's seed, or from a practice seed of their own, all else the
+same (how much a result owes to the trials practice happened to draw)."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+import multiform
+from multiform.adapt.practice import PracticeConfig
+from multiform.io import read_json
+from multiform.job import Job, JobConfig
+
+
+@pytest.fixture(scope="module")
+def car(tmp_path_factory, mountain_car_class):
+    task = mountain_car_class()
+    out = tmp_path_factory.mktemp("car")
+    demos = multiform.record(task, out / "demos.h5", demos=6)
+    model = multiform.train(task.SKILL, demos, out / "model", task=task, log=lambda s: None)
+    return task, model.path
+
+
+def _practise(car, folder, **config) -> dict[str, list[int]]:
+    """The trial seeds each scenario drew, practising a copy of the model for two trials a scenario."""
+    task, model_dir = car
+    shutil.copytree(model_dir, folder / "model")
+    job = Job(task, folder / "run", JobConfig(seed=3, practice_max_trials=2, practice_budget=4, **config),
+              log=lambda *a: None, progress=False)
+    job.practise(multiform.open_model(folder / "model"))
+    return {sc.name: [t["seed"] for t in read_json(folder / "run" / "practice" / sc.name / "state.json", "state")["trials"]]
+            for sc in task.scenarios()}
+
+
+def test_practice_draws_from_the_job_seed_unless_given_its_own(car, tmp_path):
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    default = _practise(car, tmp_path / "a")
+    own = _practise(car, tmp_path / "b", practice_seed=40)
+    for i, name in enumerate(default):            # scenario i draws from the seed plus its place in the list
+        assert default[name] == [PracticeConfig(seed=3 + i).trial_seed(k) for k in range(len(default[name]))]
+        assert own[name] == [PracticeConfig(seed=40 + i).trial_seed(k) for k in range(len(own[name]))]
+        assert default[name] and own[name]
+
+
+def test_demo_takes_a_practice_seed():
+    from multiform.cli import build_parser
+    parse = build_parser().parse_args
+    assert parse(["demo", "pendulum", "-o", "run"]).practice_seed is None
+    assert parse(["demo", "pendulum", "-o", "run", "--practice-seed", "7"]).practice_seed == 7
+    with pytest.raises(SystemExit):
+        parse(["demo", "pendulum", "-o", "run", "--practice-seed", "-1"])
