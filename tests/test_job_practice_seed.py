@@ -44,6 +44,22 @@ def test_practice_draws_from_the_job_seed_unless_given_its_own(car, tmp_path):
         assert default[name] and own[name]
 
 
+def test_a_run_folder_practised_on_other_draws_is_refused(car, tmp_path):
+    """A finished practice is reused when a run folder is resumed; on another practice seed it would
+    stand for draws it never saw, so the job refuses it and leaves it as it was."""
+    from multiform.errors import InvalidInput
+    (tmp_path / "a").mkdir()
+    _practise(car, tmp_path / "a")
+    task, _ = car
+    state = tmp_path / "a" / "run" / "practice" / task.scenarios()[0].name / "state.json"
+    before = state.read_bytes()
+    job = Job(task, tmp_path / "a" / "run", JobConfig(seed=3, practice_max_trials=2, practice_budget=4, practice_seed=40),
+              log=lambda *a: None, progress=False)
+    with pytest.raises(InvalidInput, match="other draws") as err:
+        job.practise(multiform.open_model(tmp_path / "a" / "model"))
+    assert str(state) in str(err.value) and state.read_bytes() == before
+
+
 def test_demo_takes_a_practice_seed():
     from multiform.cli import build_parser
     parse = build_parser().parse_args
