@@ -24,6 +24,18 @@ def mountain_car_class():
 
 
 @pytest.fixture(scope="session")
+def trained_car(tmp_path_factory, mountain_car_class):
+    """The tutorial's task and a model directory trained from six of its demonstrations, shared by the
+    tests that practise it (they copy it before changing it)."""
+    import multiform
+    task = mountain_car_class()
+    out = tmp_path_factory.mktemp("car")
+    demos = multiform.record(task, out / "demos.h5", demos=6)
+    model = multiform.train(task.SKILL, demos, out / "model", task=task, log=lambda s: None)
+    return task, model.path
+
+
+@pytest.fixture(scope="session")
 def hostile_lab(tmp_path_factory) -> Path:
     """Four pendulum mentor demos and a model trained from them (the env takes the hand command
     itself), shared by the hostile-input tests, which copy it and never change it."""

@@ -13,14 +13,11 @@ from multiform.job import Job, JobConfig
 from multiform.petri.revision import set_lambda
 
 
-@pytest.fixture(scope="module")
-def car(tmp_path_factory, mountain_car_class):
-    task = mountain_car_class()             # the Task defaults: a repair scenario, then one that learns
+@pytest.fixture()
+def car(trained_car):
+    task, _ = trained_car                   # the Task defaults: a repair scenario, then one that learns
     assert [s.learn for s in task.scenarios()] == [False, True]
-    out = tmp_path_factory.mktemp("car")
-    demos = multiform.record(task, out / "demos.h5", demos=6)
-    model = multiform.train(task.SKILL, demos, out / "model", task=task, log=lambda s: None)
-    return task, model.path
+    return trained_car
 
 
 class Queue:

@@ -13,13 +13,9 @@ from multiform.io import read_json
 from multiform.job import Job, JobConfig
 
 
-@pytest.fixture(scope="module")
-def car(tmp_path_factory, mountain_car_class):
-    task = mountain_car_class()
-    out = tmp_path_factory.mktemp("car")
-    demos = multiform.record(task, out / "demos.h5", demos=6)
-    model = multiform.train(task.SKILL, demos, out / "model", task=task, log=lambda s: None)
-    return task, model.path
+@pytest.fixture()
+def car(trained_car):
+    return trained_car
 
 
 def _practise(car, folder, **config) -> dict[str, list[int]]:

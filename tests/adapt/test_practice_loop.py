@@ -16,13 +16,9 @@ import multiform
 from multiform.adapt.practice import Practice, state_from_json
 
 
-@pytest.fixture(scope="module")
-def trained(tmp_path_factory, mountain_car_class):
-    task = mountain_car_class()
-    out = tmp_path_factory.mktemp("mc")
-    demos = multiform.record(task, out / "demos.h5", demos=6)
-    model = multiform.train(task.SKILL, demos, out / "model", task=task, log=lambda s: None)
-    return task, model.path
+@pytest.fixture()
+def trained(trained_car):
+    return trained_car
 
 
 def _practice(task, model_dir: Path, folder: Path, max_trials: int = 8) -> Practice:
