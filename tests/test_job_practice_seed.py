@@ -13,14 +13,9 @@ from multiform.io import read_json
 from multiform.job import Job, JobConfig
 
 
-@pytest.fixture()
-def car(trained_car):
-    return trained_car
-
-
-def _practise(car, folder, **config) -> dict[str, list[int]]:
+def _practise(trained_car, folder, **config) -> dict[str, list[int]]:
     """The trial seeds each scenario drew, practising a copy of the model for two trials a scenario."""
-    task, model_dir = car
+    task, model_dir = trained_car
     shutil.copytree(model_dir, folder / "model")
     job = Job(task, folder / "run", JobConfig(seed=3, practice_max_trials=2, practice_budget=4, **config),
               log=lambda *a: None, progress=False)
@@ -29,24 +24,24 @@ def _practise(car, folder, **config) -> dict[str, list[int]]:
             for sc in task.scenarios()}
 
 
-def test_practice_draws_from_the_job_seed_unless_given_its_own(car, tmp_path):
+def test_practice_draws_from_the_job_seed_unless_given_its_own(trained_car, tmp_path):
     (tmp_path / "a").mkdir()
     (tmp_path / "b").mkdir()
-    default = _practise(car, tmp_path / "a")
-    own = _practise(car, tmp_path / "b", practice_seed=40)
+    default = _practise(trained_car, tmp_path / "a")
+    own = _practise(trained_car, tmp_path / "b", practice_seed=40)
     for i, name in enumerate(default):            # scenario i draws from the seed plus its place in the list
         assert default[name] == [PracticeConfig(seed=3 + i).trial_seed(k) for k in range(len(default[name]))]
         assert own[name] == [PracticeConfig(seed=40 + i).trial_seed(k) for k in range(len(own[name]))]
         assert default[name] and own[name]
 
 
-def test_a_run_folder_practised_on_other_draws_is_refused(car, tmp_path):
+def test_a_run_folder_practised_on_other_draws_is_refused(trained_car, tmp_path):
     """A finished practice is reused when a run folder is resumed; on another practice seed it would
     stand for draws it never saw, so the job refuses it and leaves it as it was."""
     from multiform.errors import InvalidInput
     (tmp_path / "a").mkdir()
-    _practise(car, tmp_path / "a")
-    task, _ = car
+    _practise(trained_car, tmp_path / "a")
+    task, _ = trained_car
     state = tmp_path / "a" / "run" / "practice" / task.scenarios()[0].name / "state.json"
     before = state.read_bytes()
     job = Job(task, tmp_path / "a" / "run", JobConfig(seed=3, practice_max_trials=2, practice_budget=4, practice_seed=40),

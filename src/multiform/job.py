@@ -210,13 +210,8 @@ class Job:
                 sc = sc.with_config(self.cfg.practice)
             practice = sc.practice(model, folder, limit, self.practice_seed + index, mentors=graders)
             cfg = practice.config
-            begun = practice.load_state()
-            if begun.trials and begun.trials[0].seed != cfg.trial_seed(begun.trials[0].drawn):
-                raise InvalidInput(f"was practised on other draws (its first trial's seed {begun.trials[0].seed}, this "
-                                   f"job's {cfg.trial_seed(begun.trials[0].drawn)}: another --seed or --practice-seed); "
-                                   f"practise in a new run folder", file=str(practice.state_path), element="trials[0].seed")
             with self._bar(cfg.max_trials, f"practice {sc.name}") as bar:
-                bar.update(begun.trial)
+                bar.update(practice.load_state().trial)
                 with fitting(self.cfg.workers):
                     state = practice.run(progress=lambda st, tr: bar.update(1))
             used += len(state.trials)

@@ -16,19 +16,14 @@ import multiform
 from multiform.adapt.practice import Practice, state_from_json
 
 
-@pytest.fixture()
-def trained(trained_car):
-    return trained_car
-
-
 def _practice(task, model_dir: Path, folder: Path, max_trials: int = 8) -> Practice:
     sc = task.scenarios()[0]
     return Practice(multiform.open_model(model_dir), folder, sc.practice_config(max_trials=max_trials, seed=1),
                     options=sc.options, name=sc.name)
 
 
-def test_constant_failure_is_repaired_and_the_repair_then_succeeds(trained, tmp_path):
-    task, model_dir = trained
+def test_constant_failure_is_repaired_and_the_repair_then_succeeds(trained_car, tmp_path):
+    task, model_dir = trained_car
     model = tmp_path / "model"
     shutil.copytree(model_dir, model)
     state = _practice(task, model, tmp_path / "p").run()
@@ -46,8 +41,8 @@ def test_constant_failure_is_repaired_and_the_repair_then_succeeds(trained, tmp_
     assert state_from_json(json.loads((tmp_path / "p" / "state.json").read_text()), "state.json") == state
 
 
-def test_a_loop_stopped_midway_resumes_to_where_an_uninterrupted_one_ends(trained, tmp_path):
-    task, model_dir = trained
+def test_a_loop_stopped_midway_resumes_to_where_an_uninterrupted_one_ends(trained_car, tmp_path):
+    task, model_dir = trained_car
     ends = []
     for stop in (None, 2, 4):
         model = tmp_path / f"model_{stop}"
@@ -63,10 +58,10 @@ def test_a_loop_stopped_midway_resumes_to_where_an_uninterrupted_one_ends(traine
     assert ends[0] == ends[1] == ends[2]
 
 
-def test_each_trial_starts_as_evaluation_draws_a_trial_of_its_seed(trained, tmp_path):
+def test_each_trial_starts_as_evaluation_draws_a_trial_of_its_seed(trained_car, tmp_path):
     """A practice trial's reset options come from its own seed (as an evaluation trial's do), so two
     job seeds practise from different starts, not from one sequence indexed by the trial number."""
-    task, model_dir = trained
+    task, model_dir = trained_car
     asked: dict[int, list[int]] = {}
     for job_seed in (1, 2):
         model = tmp_path / f"model_{job_seed}"

@@ -15,6 +15,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
+from ...errors import InvalidInput
 from ...io import read_json, write_json
 from ...lock import exclusive
 from ...model import SkillModel
@@ -93,6 +94,15 @@ class Practice:
                 state.failed_since_repair = []
         return state
 
+    def check_draws(self, state: PracticeState) -> None:
+        """Refuse a saved state whose trials were drawn from another seed: resumed, it would stand for
+        draws this practice never ran."""
+        first = state.trials[0] if state.trials else None
+        if first is not None and first.seed != self.config.trial_seed(first.drawn):
+            raise InvalidInput(f"was practised on other draws (its first trial's seed {first.seed}, this practice's "
+                               f"{self.config.trial_seed(first.drawn)}: another seed); practise in a new folder",
+                               file=str(self.state_path), element="trials[0].seed")
+
     def save_state(self, state: PracticeState) -> None:
         write_json(self.state_path, state_to_json(state))
 
@@ -115,6 +125,7 @@ class Practice:
         cfg = self.config
         self.folder.mkdir(parents=True, exist_ok=True)
         state = self.load_state()
+        self.check_draws(state)
         env = self.model.make_env()
         executor, explorer, version = None, None, -1
         judges = self.model.judges()
